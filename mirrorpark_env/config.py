@@ -1,0 +1,226 @@
+"""Validated configuration: the YAML files in ``configs/`` read through pydantic models.
+
+A bad file or dict raises ``ValueError`` naming the file, the field, the allowed range
+and the value given, e.g. ``vehicle.yaml: wheelbase: Input should be greater than 0
+(got -2.5)``.
+"""
+
+from __future__ import annotations
+
+import math
+from importlib import resources
+from pathlib import Path
+from typing import Any, Literal, TypeVar
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+ParkingTypeName = Literal["parallel", "reverse", "angle"]
+
+M = TypeVar("M", bound=BaseModel)
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class VehicleConfig(_Strict):
+    """The vehicle of Table II (SI units)."""
+
+    wheelbase: float = Field(2.5, gt=0, le=10)
+    rear_overhang: float = Field(0.71, ge=0, le=5)
+    front_length: float = Field(3.11, gt=0, le=10)
+    width: float = Field(1.67, gt=0, le=5)
+    max_steer_rad: float = Field(0.6, gt=0, lt=math.pi / 2)
+    accel_min: float = Field(-5.0, lt=0, ge=-20)
+    accel_max: float = Field(3.0, gt=0, le=20)
+    speed_min: float = Field(-3.0, lt=0, ge=-30)
+    speed_max: float = Field(3.0, gt=0, le=30)
+    tau_accel_s: float = Field(0.3, gt=0, le=5)
+    tau_steer_s: float = Field(0.1, gt=0, le=5)
+
+    @model_validator(mode="after")
+    def _front_beyond_axle(self) -> VehicleConfig:
+        if self.front_length <= self.wheelbase:
+            raise ValueError(
+                f"front_length ({self.front_length}) must exceed wheelbase ({self.wheelbase})"
+            )
+        return self
+
+
+class Levels(_Strict):
+    """Factor levels start + step * k for k = 0 .. count - 1."""
+
+    start: float
+    step: float = Field(ge=0)
+    count: int = Field(ge=1, le=10_000)
+
+    def values(self) -> list[float]:
+        return [round(self.start + self.step * k, 10) for k in range(self.count)]
+
+
+class TypeGrid(_Strict):
+    road_widths: list[float] = Field(min_length=1)
+    slot_length: Levels
+    slot_width: Levels
+
+    @model_validator(mode="after")
+    def _positive(self) -> TypeGrid:
+        for rw in self.road_widths:
+            if not 0 < rw <= 50:
+                raise ValueError(f"road_widths: each must be in (0, 50] m (got {rw})")
+        return self
+
+
+class GridConfig(_Strict):
+    """Table III: factor levels per parking type."""
+
+    theta0_deg: Levels
+    y0_step: float = Field(0.1, gt=0, le=5)
+    start_x_offset: float = Field(0.0, ge=-50, le=50)
+    types: dict[ParkingTypeName, TypeGrid]
+    samples: dict[str, int] = Field(default_factory=lambda: {"smoke": 30, "standard": 500})
+    seed: int = 0
+
+    @model_validator(mode="after")
+    def _heading_range(self) -> GridConfig:
+        vals = self.theta0_deg.values()
+        if min(vals) < -180 or max(vals) > 180:
+            raise ValueError("theta0_deg: levels must lie in [-180, 180] deg")
+        for name, n in self.samples.items():
+            if n < 1:
+                raise ValueError(f"samples.{name}: must be >= 1 (got {n})")
+        return self
+
+
+class CriteriaConfig(_Strict):
+    heading_tol_deg: float = Field(3.0, gt=0, le=45)
+    min_margin_perpendicular: float = Field(0.1, ge=0, le=2)
+    stop_speed: float = Field(0.05, gt=0, le=1)
+    time_limit_s: float = Field(180.0, gt=0, le=3600)
+
+
+class RewardConfig(_Strict):
+    distance_scale: float = Field(10.0, gt=0)
+    heading_weight: float = Field(1.0, ge=0)
+    collision_penalty: float = Field(-10.0, le=0)
+    success_bonus: float = Field(10.0, ge=0)
+    goal_position_tol: float = Field(0.15, gt=0, le=5)
+    goal_heading_tol_deg: float = Field(3.0, gt=0, le=90)
+
+
+class RenderConfig(_Strict):
+    screen_width: int = Field(800, ge=64, le=4096)
+    screen_height: int = Field(420, ge=64, le=4096)
+    scaling: float = Field(26.0, gt=0, le=500)
+
+
+class EnvConfig(_Strict):
+    """Everything ``MirrorPark-v0`` can be configured with."""
+
+    dt: float = Field(0.1, gt=0, le=1.0)
+    substep: float = Field(0.01, gt=0, le=0.02)
+    criteria: CriteriaConfig = CriteriaConfig()
+    reward: RewardConfig = RewardConfig()
+    parking_types: list[ParkingTypeName] = Field(
+        default_factory=lambda: ["parallel", "reverse", "angle"], min_length=1
+    )
+    scene_margin: float = Field(25.0, ge=5, le=200)
+    render: RenderConfig = RenderConfig()
+    vehicle: VehicleConfig = VehicleConfig()
+
+    @model_validator(mode="after")
+    def _substeps_divide(self) -> EnvConfig:
+        n = self.dt / self.substep
+        if abs(n - round(n)) > 1e-9:
+            raise ValueError(f"substep ({self.substep}) must divide dt ({self.dt}) evenly")
+        return self
+
+
+def _format_errors(source: str, err: ValidationError) -> str:
+    lines = []
+    for e in err.errors():
+        loc = ".".join(str(p) for p in e["loc"]) or "(top level)"
+        got = e.get("input")
+        got_s = "" if isinstance(got, dict) else f" (got {got!r})"
+        lines.append(f"{source}: {loc}: {e['msg']}{got_s}")
+    return "\n".join(lines)
+
+
+def validate(model: type[M], data: Any, source: str = "config") -> M:
+    """Validate ``data`` against ``model``; raise ``ValueError`` naming each bad field."""
+    if isinstance(data, model):
+        return data
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ValueError(f"{source}: expected a mapping of fields, got {type(data).__name__}")
+    try:
+        return model.model_validate(data)
+    except ValidationError as err:
+        raise ValueError(_format_errors(source, err)) from None
+
+
+def read_yaml(path: str | Path) -> dict[str, Any]:
+    """Read a YAML mapping; a missing or malformed file raises ``ValueError``."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as err:
+        raise ValueError(f"{p}: cannot read config file ({err.strerror})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise ValueError(f"{p}: not valid YAML: {err}") from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ValueError(f"{p}: expected a mapping at the top level, got {type(data).__name__}")
+    return data
+
+
+def load(model: type[M], path: str | Path) -> M:
+    """Load and validate one YAML file."""
+    return validate(model, read_yaml(path), source=Path(path).name)
+
+
+def default_config_path(name: str) -> Path:
+    """Path of a config file shipped with the package (``configs/`` in the source tree)."""
+    source_tree = Path(__file__).resolve().parent.parent / "configs" / name
+    if source_tree.exists():  # a checkout or an editable install
+        return source_tree
+    try:  # a wheel install ships configs/ as the package data mirrorpark_env.configs
+        return Path(str(resources.files("mirrorpark_env.configs").joinpath(name)))
+    except ModuleNotFoundError:
+        raise ValueError(f"config file {name!r} not found (looked in {source_tree.parent})") from None
+
+
+def default_vehicle() -> VehicleConfig:
+    return load(VehicleConfig, default_config_path("vehicle.yaml"))
+
+
+def default_grid() -> GridConfig:
+    return load(GridConfig, default_config_path("grid.yaml"))
+
+
+def default_env() -> EnvConfig:
+    data = read_yaml(default_config_path("env.yaml"))
+    data.setdefault("vehicle", read_yaml(default_config_path("vehicle.yaml")))
+    return validate(EnvConfig, data, source="env.yaml")
+
+
+def merge(base: BaseModel, overrides: dict[str, Any] | None, source: str = "config") -> Any:
+    """``base`` with ``overrides`` merged in (nested dicts merge key by key), validated."""
+    data = base.model_dump()
+
+    def deep(d: dict[str, Any], o: dict[str, Any]) -> dict[str, Any]:
+        for k, v in o.items():
+            if isinstance(v, BaseModel):
+                v = v.model_dump()
+            if isinstance(v, dict) and isinstance(d.get(k), dict):
+                d[k] = deep(dict(d[k]), v)
+            else:
+                d[k] = v
+        return d
+
+    return validate(type(base), deep(data, overrides or {}), source=source)

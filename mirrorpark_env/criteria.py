@@ -1,0 +1,135 @@
+"""ISO 16787 / ISO 20900 success criteria as the paper states them (Figs. 17, 18).
+
+Margins are signed distances in metres from the car's outline to the slot's sides,
+positive inside the slot (figures of the paper are lost; the reading below is ours and
+is documented in docs/verdicts.md):
+
+- parallel: ``M_f`` / ``M_r``: gap between the car's outline and the slot's front / rear
+  end; ``M_e``: gap between the outline and the slot line (the outer, road-side edge).
+  Success needs all three > 0.
+- reverse and angle: ``M_fl``, ``M_fr``, ``M_rl``, ``M_rr``: gap between each corner
+  (front-left, ...) and the slot side line on that side of the car; ``M_e``: gap between
+  the outline and the slot's entrance (how far the car is in). Success needs all five
+  >= ``min_margin_perpendicular`` (0.1 m).
+
+All types also need: |heading error| <= 3 deg, parking time < 180 s, no collision, the
+whole outline inside the slot, and the car stopped.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import CriteriaConfig
+from .scenario import ParkingType, ScenarioGeometry
+from .vehicle import CORNER_NAMES
+
+# Order in which a failing criterion is reported (the first that fails).
+CRITERIA = ("collision", "time", "heading", "inside_slot", "margins", "stopped")
+
+
+def wrap_angle(a):
+    """Angle(s) wrapped to (-pi, pi]."""
+    return -((-np.asarray(a) + np.pi) % (2 * np.pi) - np.pi)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The outcome of the success check at one instant."""
+
+    success: bool
+    failed: str | None  # first failing criterion of CRITERIA, None on success
+    margins: dict[str, float]
+    heading_error: float  # [rad]
+    inside_slot: bool
+    stopped: bool
+    collision: bool
+
+
+class SuccessCriteria:
+    """Precomputed success check for one scenario geometry."""
+
+    def __init__(self, geometry: ScenarioGeometry, cfg: CriteriaConfig | None = None):
+        cfg = cfg or CriteriaConfig()
+        self.cfg = cfg
+        self.geometry = geometry
+        self.vehicle = geometry.vehicle
+        self.heading_tol = math.radians(cfg.heading_tol_deg)
+        self.target_heading = geometry.target[2]
+        names = [n for n, _ in geometry.slot_edges]
+        self._edge_index = {n: i for i, n in enumerate(names)}
+        self._normals = np.array([hp.normal for _, hp in geometry.slot_edges])  # (4, 2)
+        self._offsets = np.array([hp.offset for _, hp in geometry.slot_edges])  # (4,)
+        self.parallel = geometry.parking_type is ParkingType.PARALLEL
+        corner = {n: i for i, n in enumerate(CORNER_NAMES)}
+        e = self._edge_index
+        if self.parallel:
+            self.margin_names = ("M_f", "M_r", "M_e")
+            self._min_margin = 0.0
+            self._strict = True
+            self._spec = ((None, e["front"]), (None, e["rear"]), (None, e["entrance"]))
+        else:
+            self.margin_names = ("M_fl", "M_fr", "M_rl", "M_rr", "M_e")
+            self._min_margin = cfg.min_margin_perpendicular
+            self._strict = False
+            self._spec = (
+                (corner["front_left"], e["left"]),
+                (corner["front_right"], e["right"]),
+                (corner["rear_left"], e["left"]),
+                (corner["rear_right"], e["right"]),
+                (None, e["entrance"]),
+            )
+        self._body = [tuple(b) for b in self.vehicle.body_corners().tolist()]
+        self._edges = [(hp.normal[0], hp.normal[1], hp.offset) for _, hp in geometry.slot_edges]
+
+    def edge_distances(self, corners: np.ndarray) -> np.ndarray:
+        """Signed distance of each corner to each slot edge, (4 corners, 4 edges)."""
+        return corners @ self._normals.T - self._offsets
+
+    def margins(self, x: float, y: float, theta: float) -> dict[str, float]:
+        return self._margins_from(self._edge_distances_at(x, y, theta))
+
+    def _edge_distances_at(self, x: float, y: float, theta: float) -> list[list[float]]:
+        """d[corner][edge] in plain floats: for 4 x 4 values Python beats numpy."""
+        c, s = math.cos(theta), math.sin(theta)
+        out = []
+        for bx, by in self._body:
+            px, py = x + c * bx - s * by, y + s * bx + c * by
+            out.append([nx * px + ny * py - off for nx, ny, off in self._edges])
+        return out
+
+    def _margins_from(self, d) -> dict[str, float]:
+        return {
+            name: float(d[ci][ei]) if ci is not None else float(min(row[ei] for row in d))
+            for name, (ci, ei) in zip(self.margin_names, self._spec)
+        }
+
+    def verdict(
+        self,
+        x: float,
+        y: float,
+        theta: float,
+        v: float,
+        elapsed: float,
+        collided: bool,
+    ) -> Verdict:
+        d = self._edge_distances_at(x, y, theta)
+        margins = self._margins_from(d)
+        herr = math.remainder(theta - self.target_heading, 2 * math.pi)
+        inside = min(min(row) for row in d) >= -1e-12
+        stopped = abs(v) < self.cfg.stop_speed
+        lowest = min(margins.values())
+        margins_ok = lowest > self._min_margin if self._strict else lowest >= self._min_margin - 1e-12
+        checks = (
+            ("collision", not collided),
+            ("time", elapsed < self.cfg.time_limit_s),
+            ("heading", abs(herr) <= self.heading_tol + 1e-12),
+            ("inside_slot", inside),
+            ("margins", margins_ok),
+            ("stopped", stopped),
+        )
+        failed = next((name for name, ok in checks if not ok), None)
+        return Verdict(failed is None, failed, margins, herr, inside, stopped, collided)

@@ -1,0 +1,278 @@
+"""``MirrorPark-v0``: a goal-conditioned parking environment on highway-env.
+
+Action: ``[accel, steer]`` in [-1, 1]^2. Acceleration maps piecewise-linearly onto
+[a_min, a_max] = [-5, 3] m/s^2 with 0 -> 0; steering linearly onto +-0.6 rad (see
+``vehicle.to_action`` / ``from_action``). A NaN or infinite action raises ``ValueError``.
+
+Observation (``Dict``, usable with stable-baselines3's HER):
+- ``observation`` (13,): x/10, y/10, cos(theta), sin(theta), v/v_max, a/|a_min|,
+  delta/max_steer, RW/10, SL/10, SW/10, one-hot parking type. Together with the type the
+  three sizes fix all obstacles, so the vector is a sufficient description of the scene.
+- ``achieved_goal`` / ``desired_goal`` (4,): x/10, y/10, cos(theta), sin(theta) of the
+  rear axle now / at the target.
+
+Reward per step (``compute_reward``, vectorised for HER):
+``-(d_pos + w_h * |d_theta|) / distance_scale + success_bonus * reached +
+collision_penalty * collision``, where ``reached`` is the goal pose within 0.15 m and 3 deg.
+The episode's verdict, ``info["is_success"]``, is the ISO check of ``criteria.py``.
+
+Episodes end (terminated) on ISO success, collision or leaving the scene, and are
+truncated at the 180 s limit. Planners get the scenario's geometry once, in the reset
+``info`` (``info["geometry"]``), and the measured vehicle state every step
+(``info["vehicle_state"]``); they never read the simulator.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from highway_env.envs.common.abstract import AbstractEnv
+
+from .config import EnvConfig, default_env, merge
+from .criteria import SuccessCriteria
+from .grid import TYPES, default_grid_cases
+from .rendering import Scene, make_viewer, prepare_headless
+from .scenario import Scenario, ScenarioGeometry
+from .vehicle import TruthModel, VehicleParams, VehicleState, from_action
+
+POS_SCALE = 10.0  # [m] scale of positions in observations and goals
+V_EPS = 0.01  # [m/s] speeds below this count as standing when counting direction switches
+
+
+class MirrorParkEnv(AbstractEnv):
+    """Parallel, reverse and angle parking with the paper's car and ISO verdicts."""
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
+
+    def __init__(self, config: dict[str, Any] | EnvConfig | None = None, render_mode: str | None = None):
+        # highway-env's AbstractEnv.__init__ builds its own vehicle dynamics and spaces;
+        # this env brings its own truth model, so only gym.Env's constructor runs.
+        gym.Env.__init__(self)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode: must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.cfg: EnvConfig = config if isinstance(config, EnvConfig) else merge(default_env(), config, "MirrorPark-v0 config")
+        self.params = VehicleParams.from_config(self.cfg.vehicle)
+        self.model = TruthModel(self.params, self.cfg.dt, self.cfg.substep)
+        self.render_mode = render_mode
+        prepare_headless(render_mode)
+        r = self.cfg.render
+        # Keys read by highway-env's EnvViewer.
+        self.config = {
+            "screen_width": r.screen_width,
+            "screen_height": r.screen_height,
+            "scaling": r.scaling,
+            "centering_position": [0.5, 0.5],
+            "offscreen_rendering": render_mode != "human",
+            "render_agent": True,
+            "real_time_rendering": False,
+            "simulation_frequency": round(1 / self.cfg.dt),
+            "policy_frequency": round(1 / self.cfg.dt),
+            "show_trajectories": False,
+            "manual_control": False,
+        }
+        self.viewer = None
+        self._record_video_wrapper = None
+        self.enable_auto_render = False
+        self.road = None
+        self.controlled_vehicles = []
+        self.scene: Scene | None = None
+        self.time = 0.0
+        self.steps = 0
+        self.done = False
+
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        goal = spaces.Box(-np.inf, np.inf, shape=(4,), dtype=np.float32)
+        self.observation_space = spaces.Dict(
+            {
+                "observation": spaces.Box(-np.inf, np.inf, shape=(13,), dtype=np.float32),
+                "achieved_goal": goal,
+                "desired_goal": goal,
+            }
+        )
+        self.geometry: ScenarioGeometry | None = None
+        self._pool: np.ndarray | None = None
+        self._heading_tol = math.radians(self.cfg.reward.goal_heading_tol_deg)
+
+    # ------------------------------------------------------------------ episode
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        gym.Env.reset(self, seed=seed)
+        options = options or {}
+        unknown = set(options) - {"scenario"}
+        if unknown:
+            raise ValueError(f"reset options: unknown {sorted(unknown)}; allowed: ['scenario']")
+        scenario = self._scenario_from(options.get("scenario"))
+        g = scenario.build(self.params, self.cfg.scene_margin)
+        self.geometry = g
+        self.criteria = SuccessCriteria(g, self.cfg.criteria)
+        s = g.start
+        self.state = np.array([s.x, s.y, s.theta, 0.0, 0.0, 0.0])
+        self.time = 0.0
+        self._substeps = 0
+        self.steps = 0
+        self.done = False
+        self.switches = 0
+        self.path_length = 0.0
+        self._last_dir = 0
+        self.collided = bool(g.checker.collides(s.x, s.y, s.theta)[0])
+        self._x_range = (g.bounds[0] + self.params.length, g.bounds[1] - self.params.length)
+        sc = scenario
+        onehot = [1.0 if t is sc.parking_type else 0.0 for t in TYPES]
+        self._static_obs = np.array(
+            [sc.road_width / POS_SCALE, sc.slot_length / POS_SCALE, sc.slot_width / POS_SCALE, *onehot]
+        )
+        tx, ty, tth = g.target
+        self._desired = np.array([tx / POS_SCALE, ty / POS_SCALE, math.cos(tth), math.sin(tth)], dtype=np.float32)
+        self.scene = Scene(g, self.np_random) if self.render_mode is not None else None
+        if self.scene is not None:
+            self.road = self.scene.road
+            self.controlled_vehicles = [self.scene.ego]
+            self.scene.update(s.x, s.y, s.theta, 0.0)
+        obs = self._obs()
+        info = self._info(False)
+        info.update(scenario=scenario, case_id=scenario.case_id, geometry=g)
+        if self.render_mode == "human":
+            self.render()
+        return obs, info
+
+    def _scenario_from(self, spec: Scenario | str | None) -> Scenario:
+        if isinstance(spec, Scenario):
+            return spec
+        if isinstance(spec, str):
+            return Scenario.from_case_id(spec)
+        if spec is not None:
+            raise ValueError(f"reset options: 'scenario' must be a Scenario or a case id, got {type(spec).__name__}")
+        grid = default_grid_cases()
+        if self._pool is None:
+            self._pool = np.concatenate([grid.indices(t) for t in self.cfg.parking_types])
+        return grid.scenario(int(self._pool[self.np_random.integers(len(self._pool))]))
+
+    def step(self, action):
+        if self.geometry is None:
+            raise RuntimeError("MirrorPark-v0: call reset() before step()")
+        if self.done:
+            raise RuntimeError("MirrorPark-v0: the episode has ended; call reset()")
+        a_cmd, d_cmd = from_action(self.params, action)
+        traj = self.model.step(self.state, a_cmd, d_cmd)
+        hit = self.geometry.checker.collides(traj[:, 0], traj[:, 1], traj[:, 2])
+        n_sub = len(traj)
+        if hit.any():
+            n_sub = int(np.argmax(hit)) + 1
+            traj = traj[:n_sub]
+            self.collided = True
+        self.path_length += float(traj[:, 6].sum())
+        self._count_switches(traj[:, 3].tolist())
+        self.state = traj[-1, :6]
+        self._substeps += n_sub
+        self.time = round(self._substeps * self.model.h, 9)  # no drift from summing 0.1 s
+        self.steps += 1
+        x, y, th = self.state[:3].tolist()
+        out = not (self._x_range[0] <= x <= self._x_range[1])
+        obs = self._obs()
+        info = self._info(out)
+        terminated = bool(info["is_success"] or self.collided or out)
+        truncated = (not terminated) and self.time >= self.cfg.criteria.time_limit_s - 1e-9
+        self.done = terminated or truncated
+        reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], info))
+        if self.scene is not None:
+            self.scene.update(x, y, th, self.state[3])
+        if self.render_mode == "human":
+            self.render()
+        return obs, reward, terminated, truncated, info
+
+    def _count_switches(self, speeds: list[float]) -> None:
+        """A switch is a change of driving direction between two movements."""
+        last = self._last_dir
+        for v in speeds:
+            if abs(v) > V_EPS:
+                d = 1 if v > 0 else -1
+                if last != 0 and d != last:
+                    self.switches += 1
+                last = d
+        self._last_dir = last
+
+    # ------------------------------------------------------------ observation
+    def _obs(self) -> dict[str, np.ndarray]:
+        x, y, th, v, a, d = self.state.tolist()
+        p = self.params
+        c, s = math.cos(th), math.sin(th)
+        x, y = x / POS_SCALE, y / POS_SCALE
+        obs = np.empty(13, dtype=np.float32)
+        obs[:7] = (x, y, c, s, v / p.v_max, a / abs(p.a_min), d / p.max_steer)
+        obs[7:] = self._static_obs
+        return {
+            "observation": obs,
+            "achieved_goal": obs[:4].copy(),
+            "desired_goal": self._desired.copy(),
+        }
+
+    def _info(self, out_of_scene: bool) -> dict[str, Any]:
+        x, y, th, v, a, d = self.state.tolist()
+        verdict = self.criteria.verdict(x, y, th, v, self.time, self.collided)
+        failed = "out_of_scene" if out_of_scene and not verdict.success else verdict.failed
+        return {
+            "is_success": verdict.success,
+            "collision": self.collided,
+            "out_of_scene": out_of_scene,
+            "failed_criterion": failed,
+            "margins": verdict.margins,
+            "heading_error": verdict.heading_error,
+            "heading_error_deg": math.degrees(verdict.heading_error),
+            "inside_slot": verdict.inside_slot,
+            "stopped": verdict.stopped,
+            "direction_switches": self.switches,
+            "parking_time": self.time,
+            "path_length": self.path_length,
+            "vehicle_state": VehicleState(x, y, th, v, a, d),
+        }
+
+    # ------------------------------------------------------------------ reward
+    def compute_reward(self, achieved_goal, desired_goal, info) -> np.ndarray | float:
+        """Goal-conditioned reward; vectorised over leading axes (HER relabels goals)."""
+        r = self.cfg.reward
+        if isinstance(info, dict) and np.ndim(achieved_goal) == 1:  # one transition: scalar path
+            ax, ay, ac, as_ = (float(q) for q in achieved_goal)
+            dx, dy, dc, ds_ = (float(q) for q in desired_goal)
+            dpos = math.hypot(ax - dx, ay - dy) * POS_SCALE
+            dth = abs(math.atan2(as_ * dc - ac * ds_, ac * dc + as_ * ds_))
+            reached = dpos <= r.goal_position_tol and dth <= self._heading_tol
+            return (-(dpos + r.heading_weight * dth) / r.distance_scale + r.success_bonus * reached
+                    + r.collision_penalty * bool(info.get("collision", False)))  # fmt: skip
+        ag = np.asarray(achieved_goal, dtype=float)
+        dg = np.asarray(desired_goal, dtype=float)
+        dpos = np.hypot(ag[..., 0] - dg[..., 0], ag[..., 1] - dg[..., 1]) * POS_SCALE
+        cross = ag[..., 3] * dg[..., 2] - ag[..., 2] * dg[..., 3]
+        dot = ag[..., 2] * dg[..., 2] + ag[..., 3] * dg[..., 3]
+        dth = np.abs(np.arctan2(cross, dot))
+        reward = -(dpos + r.heading_weight * dth) / r.distance_scale
+        reached = (dpos <= r.goal_position_tol) & (dth <= self._heading_tol)
+        reward = reward + r.success_bonus * reached + r.collision_penalty * _collisions(info, reward.shape)
+        return reward if reward.ndim else float(reward)
+
+    # --------------------------------------------------------------- rendering
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn('MirrorPark-v0: no render_mode; use gym.make("MirrorPark-v0", render_mode="rgb_array")')
+            return None
+        if self.scene is None:
+            raise RuntimeError("MirrorPark-v0: call reset() before render()")
+        if self.viewer is None:
+            self.viewer = make_viewer(self)
+        self.viewer.display()
+        if not self.viewer.offscreen:
+            self.viewer.handle_events()
+        if self.render_mode == "rgb_array":
+            return self.viewer.get_image()
+        return None
+
+
+def _collisions(info, shape) -> np.ndarray:
+    if isinstance(info, dict):
+        return np.full(shape, float(info.get("collision", False)))
+    if info is None:
+        return np.zeros(shape)
+    flags = np.array([float(i.get("collision", False)) for i in np.ravel(info)])
+    return flags.reshape(shape) if flags.size == int(np.prod(shape)) else np.zeros(shape)

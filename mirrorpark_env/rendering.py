@@ -1,0 +1,122 @@
+"""Drawing a scenario with highway-env's road, lane and vehicle graphics.
+
+highway-env draws world +Y downwards; the scene is handed to it in a display frame with
+Y flipped (``y_disp = -y``, ``heading_disp = -theta``) so that pictures show the road
+above the slot, as in the paper's figures. Rendering only: nothing here feeds back into
+the simulation.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .env import MirrorParkEnv
+    from .scenario import ScenarioGeometry
+
+
+def prepare_headless(render_mode: str | None) -> None:
+    """Make ``rgb_array`` work without a screen: SDL's offscreen driver (``dummy`` draws black)."""
+    if render_mode == "rgb_array" and os.environ.get("SDL_VIDEODRIVER", "dummy") == "dummy":
+        os.environ["SDL_VIDEODRIVER"] = "offscreen"
+    os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+
+
+def build_road(geometry: ScenarioGeometry, np_random=None):
+    """A highway-env ``Road`` with the driving strip and the slot's painted lines."""
+    from highway_env.road.lane import LineType, StraightLane
+    from highway_env.road.road import Road, RoadNetwork
+
+    x_lo, x_hi, _, _ = geometry.bounds
+    rw = geometry.road_width
+    net = RoadNetwork()
+    c, n = LineType.CONTINUOUS_LINE, LineType.NONE
+    net.add_lane("road", "end", StraightLane([x_lo, -rw / 2], [x_hi, -rw / 2], width=rw,
+                                             line_types=(c, c)))  # fmt: skip
+    slot = geometry.slot
+    names = [name for name, _ in geometry.slot_edges]
+    for i in range(4):  # the slot's sides painted, as one narrow lane each
+        a, b = slot[i], slot[(i + 1) % 4]
+        if names[i] == "entrance" and geometry.parking_type.value != "angle":
+            continue  # lies on the road's own edge line
+        net.add_lane(f"slot{i}", f"slot{i}e", StraightLane([a[0], -a[1]], [b[0], -b[1]], width=0.15,
+                                                           line_types=(c, n)))  # fmt: skip
+    return Road(network=net, np_random=np_random, record_history=False)
+
+
+class Scene:
+    """The highway-env objects that stand for the car and the target in the picture."""
+
+    def __init__(self, geometry: ScenarioGeometry, np_random=None):
+        from highway_env.vehicle.graphics import VehicleGraphics
+        from highway_env.vehicle.kinematics import Vehicle
+        from highway_env.vehicle.objects import Landmark
+
+        self.geometry = geometry
+        p = geometry.vehicle
+        self.road = build_road(geometry, np_random)
+        tx, ty, tth = geometry.target
+        off = p.center_offset
+        goal = Landmark(self.road, [tx + off * np.cos(tth), -(ty + off * np.sin(tth))], heading=-tth)
+        goal.LENGTH, goal.WIDTH = p.length, p.width
+        self.road.objects.append(goal)
+        s = geometry.start
+        self.ego = Vehicle(self.road, [s.x, -s.y], heading=-s.theta, speed=0.0)
+        self.ego.LENGTH, self.ego.WIDTH = p.length, p.width
+        self.ego.color = VehicleGraphics.EGO_COLOR
+        self.road.vehicles.append(self.ego)
+        self.path: list[tuple[float, float]] = []
+
+    def update(self, x: float, y: float, theta: float, v: float) -> None:
+        off = self.geometry.vehicle.center_offset
+        cx, cy = x + off * np.cos(theta), y + off * np.sin(theta)
+        self.ego.position = np.array([cx, -cy])
+        self.ego.heading = -theta
+        self.ego.speed = v
+        self.path.append((x, -y))
+
+
+def make_viewer(env: MirrorParkEnv):
+    """highway-env's ``EnvViewer`` drawing the obstacles, the slot, the target and the car."""
+    import pygame
+    from highway_env.envs.common.graphics import EnvViewer
+    from highway_env.road.graphics import LaneGraphics, RoadGraphics
+
+    class MirrorParkViewer(EnvViewer):
+        OBSTACLE = (70, 70, 78)
+        OBSTACLE_EDGE = (35, 35, 40)
+        PATH = (255, 255, 255)
+
+        def window_position(self) -> np.ndarray:
+            g = self.env.geometry
+            x_mid = 0.5 * (g.slot[:, 0].min() + g.slot[:, 0].max()) + 3.0
+            y_mid = 0.5 * (g.road_width + g.slot[:, 1].min())
+            return np.array([x_mid, -y_mid])
+
+        def display(self) -> None:
+            if not self.enabled or self.env.scene is None:
+                return
+            surf = self.sim_surface
+            scene = self.env.scene
+            surf.move_display_window_to(self.window_position())
+            surf.fill((118, 118, 118))
+            for poly in self.env.geometry.obstacles.polygons:
+                pts = [surf.pos2pix(px, -py) for px, py in poly]
+                pygame.draw.polygon(surf, self.OBSTACLE, pts)
+                pygame.draw.polygon(surf, self.OBSTACLE_EDGE, pts, 2)
+            for _from, tos in scene.road.network.graph.items():
+                for lanes in tos.values():
+                    for lane in lanes:
+                        LaneGraphics.display(lane, surf)
+            RoadGraphics.display_road_objects(scene.road, surf, offscreen=self.offscreen)
+            if len(scene.path) > 1:
+                pygame.draw.lines(surf, self.PATH, False, [surf.vec2pix(p) for p in scene.path], 1)
+            RoadGraphics.display_traffic(scene.road, surf, offscreen=self.offscreen)
+            if not self.offscreen:
+                self.screen.blit(surf, (0, 0))
+                pygame.display.flip()
+
+    return MirrorParkViewer(env)

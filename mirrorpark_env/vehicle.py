@@ -1,0 +1,204 @@
+"""The paper's vehicle: parameters, footprint and the truth model.
+
+Truth model: the rear-axle kinematic bicycle of Eq. (10) with the first-order actuator
+lags of Eqs. (28)-(29). Over one control step the commands are held; the lags are
+integrated exactly (they are linear), and the pose is advanced over sub-steps by an
+exact circular arc using the sub-step's mean speed and mid-step steering angle, which is
+exact whenever speed and steering are constant.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import VehicleConfig, default_vehicle
+
+# Body-frame corners (rear-axle origin, x forward, y left) in this fixed order.
+CORNER_NAMES = ("front_left", "front_right", "rear_right", "rear_left")
+
+
+@dataclass(frozen=True)
+class VehicleParams:
+    """Geometry and limits of the car (Table II); SI units, radians."""
+
+    wheelbase: float = 2.5
+    rear_overhang: float = 0.71
+    front_length: float = 3.11
+    width: float = 1.67
+    max_steer: float = 0.6
+    a_min: float = -5.0
+    a_max: float = 3.0
+    v_min: float = -3.0
+    v_max: float = 3.0
+    tau_a: float = 0.3
+    tau_delta: float = 0.1
+
+    @classmethod
+    def from_config(cls, cfg: VehicleConfig) -> VehicleParams:
+        return cls(
+            wheelbase=cfg.wheelbase,
+            rear_overhang=cfg.rear_overhang,
+            front_length=cfg.front_length,
+            width=cfg.width,
+            max_steer=cfg.max_steer_rad,
+            a_min=cfg.accel_min,
+            a_max=cfg.accel_max,
+            v_min=cfg.speed_min,
+            v_max=cfg.speed_max,
+            tau_a=cfg.tau_accel_s,
+            tau_delta=cfg.tau_steer_s,
+        )
+
+    @classmethod
+    def table_ii(cls) -> VehicleParams:
+        """The paper's car as shipped in ``configs/vehicle.yaml``."""
+        return cls.from_config(default_vehicle())
+
+    @property
+    def length(self) -> float:
+        return self.rear_overhang + self.front_length
+
+    @property
+    def r_min(self) -> float:
+        """Minimum turning radius of the rear-axle centre."""
+        return self.wheelbase / math.tan(self.max_steer)
+
+    @property
+    def center_offset(self) -> float:
+        """Distance from the rear axle forward to the body centre."""
+        return 0.5 * (self.front_length - self.rear_overhang)
+
+    def body_corners(self) -> np.ndarray:
+        """Corners in the body frame, (4, 2), ordered as ``CORNER_NAMES``."""
+        h = 0.5 * self.width
+        return np.array(
+            [
+                [self.front_length, h],
+                [self.front_length, -h],
+                [-self.rear_overhang, -h],
+                [-self.rear_overhang, h],
+            ]
+        )
+
+
+def footprint(params: VehicleParams, x, y, theta) -> np.ndarray:
+    """World corners of the footprint for one or many rear-axle poses: (..., 4, 2)."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    theta = np.asarray(theta, dtype=float)
+    c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
+    b = params.body_corners()
+    bx, by = b[:, 0], b[:, 1]
+    wx = x[..., None] + c * bx - s * by
+    wy = y[..., None] + s * bx + c * by
+    return np.stack([wx, wy], axis=-1)
+
+
+@dataclass(frozen=True)
+class VehicleState:
+    """Rear-axle pose, speed, actual acceleration and front-wheel angle."""
+
+    x: float
+    y: float
+    theta: float
+    v: float = 0.0
+    a: float = 0.0
+    delta: float = 0.0
+
+    def as_array(self) -> np.ndarray:
+        return np.array([self.x, self.y, self.theta, self.v, self.a, self.delta])
+
+    @classmethod
+    def from_array(cls, s: np.ndarray) -> VehicleState:
+        return cls(*(float(v) for v in s[:6]))
+
+
+# State vector layout used by the fast path: [x, y, theta, v, a, delta].
+X, Y, THETA, V, A, DELTA = range(6)
+
+
+class TruthModel:
+    """Propagates the truth model over one control step with constant commands.
+
+    Holds the per-step constants so that ``step`` does no repeated set-up work. The
+    sub-steps run on Python floats: for ten of them that is faster than numpy.
+    """
+
+    def __init__(self, params: VehicleParams, dt: float = 0.1, substep: float = 0.01):
+        n = round(dt / substep)
+        if n < 1 or abs(n * substep - dt) > 1e-9:
+            raise ValueError(f"substep ({substep}) must divide dt ({dt}) evenly")
+        self.params = params
+        self.dt = dt
+        self.n = n
+        self.h = h = dt / n
+        ks = range(n)
+        self._ea_start = [math.exp(-k * h / params.tau_a) for k in ks]
+        self._ea_end = [math.exp(-(k + 1) * h / params.tau_a) for k in ks]
+        self._ed_mid = [math.exp(-(k + 0.5) * h / params.tau_delta) for k in ks]
+        self._ed_end = [math.exp(-(k + 1) * h / params.tau_delta) for k in ks]
+        self._dv_lag = params.tau_a * (1.0 - math.exp(-h / params.tau_a))
+
+    def clip_commands(self, a_cmd: float, delta_cmd: float) -> tuple[float, float]:
+        p = self.params
+        return (
+            min(max(a_cmd, p.a_min), p.a_max),
+            min(max(delta_cmd, -p.max_steer), p.max_steer),
+        )
+
+    def step(self, state, a_cmd: float, delta_cmd: float) -> np.ndarray:
+        """States at the end of each sub-step, (n, 7); commands are clipped to bounds.
+
+        Columns: x, y, theta, v, a, delta, and the distance travelled in the sub-step.
+        """
+        p = self.params
+        a_cmd, delta_cmd = self.clip_commands(a_cmd, delta_cmd)
+        x, y, th, v, a0, d0 = (float(s) for s in state[:6])
+        h, inv_l, v_min, v_max, dv_lag = self.h, 1.0 / p.wheelbase, p.v_min, p.v_max, self._dv_lag
+        da, dd = a0 - a_cmd, d0 - delta_cmd
+        rows = []
+        for ea0, ea1, edm, ede in zip(self._ea_start, self._ea_end, self._ed_mid, self._ed_end):
+            # Exact lags: a(t) and delta(t) relax exponentially toward the commands.
+            v1 = v + a_cmd * h + da * ea0 * dv_lag
+            v1 = v_min if v1 < v_min else (v_max if v1 > v_max else v1)
+            ds = 0.5 * (v + v1) * h
+            dth = ds * math.tan(delta_cmd + dd * edm) * inv_l
+            half = 0.5 * dth
+            chord = ds * math.sin(half) / half if abs(half) > 1e-12 else ds
+            x += chord * math.cos(th + half)
+            y += chord * math.sin(th + half)
+            th += dth
+            v = v1
+            rows.append((x, y, th, v, a_cmd + da * ea1, delta_cmd + dd * ede, abs(chord)))
+        return np.array(rows)
+
+
+def to_action(params: VehicleParams, a_cmd: float, delta_cmd: float) -> np.ndarray:
+    """Physical commands -> the environment's normalised action in [-1, 1]^2.
+
+    Acceleration maps piecewise-linearly so that 0 stays 0: [a_min, 0] -> [-1, 0] and
+    [0, a_max] -> [0, 1]; steering maps linearly [-max_steer, max_steer] -> [-1, 1].
+    """
+    ua = a_cmd / params.a_max if a_cmd >= 0 else -a_cmd / params.a_min
+    return np.clip(np.array([ua, delta_cmd / params.max_steer], dtype=np.float32), -1.0, 1.0)
+
+
+def from_action(params: VehicleParams, action) -> tuple[float, float]:
+    """Normalised action -> physical (a_cmd, delta_cmd); the inverse of ``to_action``.
+
+    Raises ``ValueError`` for a NaN, infinite or wrongly shaped action; finite values
+    outside [-1, 1] are clipped, as an actuator saturates.
+    """
+    arr = np.asarray(action, dtype=float)
+    if arr.shape != (2,):
+        raise ValueError(f"action: expected shape (2,) [accel, steer] in [-1, 1], got {arr.shape}")
+    ua, ud = float(arr[0]), float(arr[1])
+    if not (math.isfinite(ua) and math.isfinite(ud)):
+        raise ValueError(f"action: must be finite numbers in [-1, 1], got [{ua}, {ud}]")
+    ua = min(max(ua, -1.0), 1.0)
+    ud = min(max(ud, -1.0), 1.0)
+    a_cmd = ua * params.a_max if ua >= 0 else -ua * params.a_min
+    return a_cmd, ud * params.max_steer

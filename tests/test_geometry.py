@@ -1,0 +1,64 @@
+"""Exact footprint collision: against shapely and on hand-made poses."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from shapely.geometry import Polygon
+
+from mirrorpark_env import Scenario, VehicleParams, footprint
+from mirrorpark_env.geometry import ConvexSet, FootprintChecker
+
+P = VehicleParams()
+SCENES = [
+    Scenario.from_degrees("parallel", 3.5, 4.5, 2.5, 0, 1.2),
+    Scenario.from_degrees("reverse", 5.0, 4.82, 2.0, 0, 2.0),
+    Scenario.from_degrees("angle", 3.5, 4.82, 1.9, 0, 1.5),
+]
+
+
+@pytest.mark.parametrize("sc", SCENES, ids=lambda s: s.parking_type.value)
+def test_collision_verdict_matches_shapely(sc):
+    g = sc.build()
+    polys = [Polygon(p) for p in g.obstacles.polygons]
+    rng = np.random.default_rng(7)
+    n = 2000
+    x, y = rng.uniform(-6, 8, n), rng.uniform(-2.0, 3.0, n)
+    th = rng.uniform(-math.pi, math.pi, n)
+    got = g.checker.collides(x, y, th, tol=1e-7)
+    corners = footprint(P, x, y, th)
+    want = np.array([max(Polygon(c).intersection(p).area for p in polys) > 1e-9 for c in corners])
+    depth = g.checker.penetration(x, y, th).max(axis=1)
+    unsure = np.abs(depth) < 1e-6  # grazing contacts: shapely's area test cannot decide them
+    assert want[~unsure].sum() > 100 and (~want[~unsure]).sum() > 50
+    np.testing.assert_array_equal(got[~unsure], want[~unsure])
+
+
+def test_penetration_depth_is_exact_on_an_axis_aligned_block():
+    block = ConvexSet.from_polygons([np.array([[0, 0], [10, 0], [10, 5], [0, 5]])])
+    ch = FootprintChecker(block, P.front_length, P.rear_overhang, P.width / 2)
+    # Car heading +X with its rear at X = -0.05 - ... front end 0.05 m into the block.
+    x = -P.front_length + 0.05
+    assert ch.penetration(x, 2.0, 0.0)[0, 0] == pytest.approx(0.05)
+    assert ch.collides(x, 2.0, 0.0)[0]
+    touching = -P.front_length
+    assert ch.penetration(touching, 2.0, 0.0)[0, 0] == pytest.approx(0.0, abs=1e-12)
+    assert not ch.collides(touching, 2.0, 0.0)[0]
+    # Rotated 90 deg: now the side must reach the block.
+    assert not ch.collides(-P.width / 2 - 0.01, 2.0, math.pi / 2)[0]
+    assert ch.collides(-P.width / 2 + 0.01, 2.0, math.pi / 2)[0]
+
+
+def test_corner_piercing_the_side_is_found():
+    """A sharp obstacle corner entering the car's long side, between the feature points."""
+    wedge = ConvexSet.from_polygons([np.array([[1.0, 0.7], [1.5, -3.0], [0.5, -3.0]])])
+    ch = FootprintChecker(wedge, P.front_length, P.rear_overhang, P.width / 2)
+    assert ch.collides(0.0, 0.0, 0.0)[0]  # side of the car at y = -0.835; tip at y = 0.7
+    assert not ch.collides(0.0, 1.6, 0.0)[0]
+
+
+def test_non_convex_polygon_is_rejected():
+    with pytest.raises(ValueError, match="not convex"):
+        ConvexSet.from_polygons([np.array([[0, 0], [2, 0], [1, 0.2], [2, 2], [0, 2]])])

@@ -1,0 +1,118 @@
+"""Truth model: closed-form checks, Theorem 2, action mapping."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mirrorpark_env.vehicle import TruthModel, VehicleParams, footprint, from_action, to_action
+
+P = VehicleParams()
+
+
+def run(model: TruthModel, state, commands):
+    s = np.asarray(state, float)
+    out = [s]
+    for a, d in commands:
+        s = model.step(s, a, d)[-1, :6]
+        out.append(s)
+    return np.array(out)
+
+
+def test_table_ii_values():
+    assert P.length == pytest.approx(3.82)
+    assert P.r_min == pytest.approx(2.5 / math.tan(0.6))
+    assert VehicleParams.table_ii() == P
+
+
+def test_constant_speed_and_steer_follow_the_circular_arc():
+    """With lags settled, speed and steering constant: an exact circle of radius l/tan(delta)."""
+    m = TruthModel(P, 0.1, 0.01)
+    v, delta, th0 = 1.5, 0.4, 0.3
+    R = P.wheelbase / math.tan(delta)
+    traj = run(m, [1.0, 2.0, th0, v, 0.0, delta], [(0.0, delta)] * 40)
+    t = 0.1 * np.arange(41)
+    th = th0 + v * t / R
+    np.testing.assert_allclose(traj[:, 2], th, atol=1e-12)
+    np.testing.assert_allclose(traj[:, 0], 1.0 + R * (np.sin(th) - math.sin(th0)), atol=1e-9)
+    np.testing.assert_allclose(traj[:, 1], 2.0 - R * (np.cos(th) - math.cos(th0)), atol=1e-9)
+    np.testing.assert_allclose(traj[:, 3], v)
+
+
+def test_lags_are_first_order_and_exact():
+    m = TruthModel(P, 0.1, 0.01)
+    traj = run(m, [0, 0, 0, 0, 0, 0], [(2.0, 0.5)] * 5)
+    t = 0.1 * np.arange(6)
+    np.testing.assert_allclose(traj[:, 4], 2.0 * (1 - np.exp(-t / P.tau_a)), atol=1e-12)
+    np.testing.assert_allclose(traj[:, 5], 0.5 * (1 - np.exp(-t / P.tau_delta)), atol=1e-12)
+    # v = integral of a, in closed form.
+    v = 2.0 * (t - P.tau_a * (1 - np.exp(-t / P.tau_a)))
+    np.testing.assert_allclose(traj[:, 3], v, atol=1e-12)
+
+
+def test_straight_line_distance_matches_closed_form():
+    m = TruthModel(P, 0.1, 0.01)
+    traj = run(m, [0, 0, 0, 0, 0, 0], [(1.0, 0.0)] * 10)
+    t, tau = 1.0, P.tau_a
+    x = t**2 / 2 - tau * (t - tau * (1 - math.exp(-t / tau)))
+    assert traj[-1, 0] == pytest.approx(x, abs=1e-5)
+    assert traj[-1, 1] == 0.0
+
+
+def test_commands_and_speed_saturate():
+    m = TruthModel(P, 0.1, 0.01)
+    traj = run(m, [0, 0, 0, 0, 0, 0], [(50.0, 2.0)] * 40)
+    assert traj[:, 3].max() == pytest.approx(P.v_max)
+    assert traj[:, 4].max() <= P.a_max + 1e-12
+    assert np.abs(traj[:, 5]).max() <= P.max_steer + 1e-12
+
+
+@pytest.mark.parametrize("lags", [False, True])
+def test_theorem_2_negated_commands_give_the_point_reflected_path(lags):
+    """Eq. (7)-(9): same start, opposite speed, negated commands -> x, y negated, theta equal."""
+    params = P if lags else VehicleParams(tau_a=1e-9, tau_delta=1e-9)
+    m = TruthModel(params, 0.1, 0.01)
+    rng = np.random.default_rng(0)
+    # Within the symmetric part of the bounds (|a| <= 3): a negated command is not clipped.
+    accel = 1.5 * np.sin(np.arange(60) / 4.0)
+    cmds = list(zip(accel, rng.uniform(-0.6, 0.6, 60)))
+    a0, d0 = (0.7, -0.2) if lags else (0.0, 0.0)
+    fwd = run(m, [0, 0, 0.4, 1.2, a0, d0], cmds)
+    back = run(m, [0, 0, 0.4, -1.2, -a0, -d0], [(-a, -d) for a, d in cmds])
+    assert np.abs(fwd[:, 3]).max() < P.v_max  # no saturation, so the symmetry is exact
+    np.testing.assert_allclose(back[:, 0], -fwd[:, 0], atol=1e-12)
+    np.testing.assert_allclose(back[:, 1], -fwd[:, 1], atol=1e-12)
+    np.testing.assert_allclose(back[:, 2], fwd[:, 2], atol=1e-12)
+    np.testing.assert_allclose(back[:, 3], -fwd[:, 3], atol=1e-12)
+
+
+def test_footprint_corners():
+    c = footprint(P, 1.0, 2.0, math.pi / 2)
+    np.testing.assert_allclose(c[0], [1.0 - 0.835, 2.0 + 3.11])  # front-left
+    np.testing.assert_allclose(c[2], [1.0 + 0.835, 2.0 - 0.71])  # rear-right
+
+
+def test_action_mapping_round_trip_and_zero():
+    for a, d in [(0.0, 0.0), (3.0, 0.6), (-5.0, -0.6), (-2.0, 0.3), (1.5, -0.1)]:
+        u = to_action(P, a, d)
+        assert from_action(P, u) == pytest.approx((a, d), abs=1e-6)
+    assert from_action(P, [0.0, 0.0]) == (0.0, 0.0)
+    assert from_action(P, [7.0, -3.0]) == pytest.approx((3.0, -0.6))
+
+
+@pytest.mark.parametrize("bad", [[np.nan, 0.0], [0.0, np.inf]])
+def test_nan_action_is_an_error(bad):
+    with pytest.raises(ValueError, match="action: must be finite"):
+        from_action(P, bad)
+
+
+def test_wrong_action_shape_is_an_error():
+    with pytest.raises(ValueError, match=r"action: expected shape \(2,\)"):
+        from_action(P, [0.1, 0.2, 0.3])
+
+
+def test_substep_must_divide_dt():
+    with pytest.raises(ValueError, match="substep"):
+        TruthModel(P, 0.1, 0.03)
