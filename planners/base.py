@@ -1,0 +1,65 @@
+"""The policy interface every planner implements, and per-call planning statistics.
+
+A policy sees what a real parking system sees: the scenario's geometry once at reset
+(``info["geometry"]`` of ``env.reset``) and the measured vehicle state each step
+(``info["vehicle_state"]``). It returns the environment's normalised action.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from mirrorpark_env.scenario import ScenarioGeometry
+
+
+@dataclass(frozen=True)
+class PlanStats:
+    """One planning call: wall time, solver effort and outcome."""
+
+    wall_time_s: float
+    status: str  # "ok", "infeasible", "budget", "failed", ...
+    iterations: int = 0  # outer iterations (SCP / Algorithm I / search expansions)
+    qp_solves: int = 0
+    nodes: int = 0  # branch-and-bound or search nodes
+    cost: float = float("nan")
+    detail: dict[str, Any] = field(default_factory=dict)
+
+
+class Policy(ABC):
+    """A parking planner as a policy: reset with the geometry, then act every step."""
+
+    name: str = "policy"
+
+    def __init__(self) -> None:
+        self.stats: list[PlanStats] = []
+
+    @abstractmethod
+    def reset(self, geometry: ScenarioGeometry) -> None:
+        """Start a new episode in ``geometry``; forget the last one's plans and stats."""
+
+    @abstractmethod
+    def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
+        """The next normalised action [accel, steer] for the measured state in ``info``."""
+
+    @property
+    def status(self) -> str:
+        """The last planning call's status ("none" before any)."""
+        return self.stats[-1].status if self.stats else "none"
+
+
+def run_episode(env, policy: Policy, scenario=None, seed: int | None = None, max_steps: int = 100_000):
+    """Roll ``policy`` out in ``env`` for one episode; return (last info, steps)."""
+    options = {"scenario": scenario} if scenario is not None else None
+    obs, info = env.reset(seed=seed, options=options)
+    policy.reset(info["geometry"])
+    steps = 0
+    while steps < max_steps:
+        obs, _, terminated, truncated, info = env.step(policy.act(obs, info))
+        steps += 1
+        if terminated or truncated:
+            break
+    return info, steps

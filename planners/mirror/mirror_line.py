@@ -1,0 +1,95 @@
+"""Mirror line (paper section II.B) and mirrored target (DESIGN.md section 4).
+
+The mirror line is parallel to the slot's axis (the target heading), on the right-hand
+side of the parked car at distance ``l_mi`` from the target's axis line:
+
+- parallel: deeper in the slot than the target (Theorem 1): the car reverses to the
+  line, then drives forward to the target;
+- reverse, angle: in the road, ahead of the slot (Eqs. 5, 6): the car drives forward to
+  the line, then reverses into the slot.
+
+``psi`` below is the heading change still to go at the line, |theta_target - theta|.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+
+from mirrorpark_env.scenario import ParkingType, ScenarioGeometry
+from mirrorpark_env.vehicle import VehicleParams
+
+
+def reach_lower_bound(params: VehicleParams, psi: float) -> float:
+    """Eqs. (1), (5), (6): l_mi >= r_min (1 - cos psi), to turn psi back within full lock."""
+    return params.r_min * (1.0 - math.cos(psi))
+
+
+def parallel_upper_bound(params: VehicleParams, slot_width: float, psi: float) -> float:
+    """Eq. (2): the rear corner on the kerb side stays inside the slot at the line."""
+    return 0.5 * slot_width - params.rear_overhang * math.sin(psi) - 0.5 * params.width * math.cos(psi)
+
+
+def parallel_dark_point(params: VehicleParams, slot_width: float) -> tuple[float, float]:
+    """(psi*, l*): where the bounds of Theorem 1 meet.
+
+    For a fixed l the feasible headings are [0, min(psi_low(l), psi_up(l))]; the crossing
+    of the bounds maximises that range, the paper's robust "dark point" (Fig. 8). Returns
+    (0, 0) when the slot is too narrow for any band (upper bound < 0 at psi = 0).
+    """
+
+    def gap(psi: float) -> float:
+        return parallel_upper_bound(params, slot_width, psi) - reach_lower_bound(params, psi)
+
+    if gap(0.0) <= 0.0:
+        return 0.0, 0.0
+    psi = brentq(gap, 0.0, math.pi / 2)
+    return psi, reach_lower_bound(params, psi)
+
+
+@dataclass(frozen=True)
+class MirrorLine:
+    """Points p with ``normal . (p - target_xy) = distance`` (``fixed``), or ``>=`` it."""
+
+    target_xy: tuple[float, float]
+    normal: tuple[float, float]  # unit, right of the target heading
+    distance: float  # l_mi [m]
+    fixed: bool  # True: the switch lies on the line; False: at least this far out
+    psi: float  # heading change the distance was computed for [rad]
+
+    def offset(self, p) -> float:
+        """Signed distance of point ``p`` from the target's axis line along ``normal``."""
+        p = np.asarray(p, float)
+        return float((p[0] - self.target_xy[0]) * self.normal[0] + (p[1] - self.target_xy[1]) * self.normal[1])
+
+
+def right_normal(heading: float) -> tuple[float, float]:
+    return (math.sin(heading), -math.cos(heading))
+
+
+def mirror_line(geometry: ScenarioGeometry, psi: float | None = None, margin: float = 1.1) -> MirrorLine:
+    """The mirror line of a scenario.
+
+    Parallel: the dark point of Theorem 1 (fixed line). Reverse and angle: the lower bound
+    of Eq. (5) / (6) for a heading change ``psi`` (default: the full turn from the road's
+    direction, 90 / 45 deg), times ``margin`` so the turn keeps some steering in reserve;
+    the switch may lie further out, where the road allows.
+    """
+    p = geometry.vehicle
+    tx, ty, tth = geometry.target
+    n = right_normal(tth)
+    if geometry.parking_type is ParkingType.PARALLEL:
+        psi_star, l_star = parallel_dark_point(p, geometry.scenario.slot_width)
+        return MirrorLine((tx, ty), n, l_star, True, psi_star)
+    if psi is None:
+        psi = abs(tth)  # from heading 0 (along the road) to the target heading
+    return MirrorLine((tx, ty), n, margin * reach_lower_bound(p, psi), False, psi)
+
+
+def mirrored_target(target: tuple[float, float, float], switch_xy) -> tuple[float, float, float]:
+    """The real target reflected through the switch point (Theorem 2): heading unchanged."""
+    sx, sy = switch_xy
+    return (2 * sx - target[0], 2 * sy - target[1], target[2])

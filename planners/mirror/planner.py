@@ -1,0 +1,531 @@
+"""The mirrored-target planner: one plan = one direction switch (paper II.C-E, DESIGN 4-5).
+
+Decision variables: planned states xi_0..xi_N, controls u_0..u_{N-1}, and the switch
+point S. The planned motion is monodirectional; at the switch step s the car stands
+(v_s = 0) and from then on executes negated commands (Eq. 42), so its real pose is the
+planned pose reflected through S: real = (2 S - p, theta) (Theorem 2). Exactly so with
+the actuator lags too: at s the planned lag states are the real ones negated, which the
+dynamics row of step s encodes (``flip``). Consequences, all linear for fixed s:
+
+- the mirrored target is 2 S - p_target; the cost pulls the planned poses to it, which is
+  the real pose error after the switch (and terminal error at N);
+- S lies on the mirror line (parallel) or beyond its lower bound (reverse, angle);
+- obstacle constraints are written on the real body: before s on p + R(theta) c, after s
+  on 2 S - p + R(theta) c (the flipped body against obstacles reflected through S).
+
+Solving (Algorithm I inside sequential convex programming): a QP without obstacles; the
+exact footprint check of the rolled-out plan finds the colliding steps; disjunctive
+obstacle constraints (Eq. 40) are added at those steps only and the MIQP is solved by
+branch-and-bound; repeat until the plan is clear, re-linearising about each rollout.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+
+from mirrorpark_env.scenario import ParkingType, ScenarioGeometry
+from mirrorpark_env.vehicle import TruthModel, VehicleState
+
+from ..base import PlanStats
+from .mirror_line import MirrorLine, mirror_line
+from .model import NU, NX, PlanningModel
+from .solvers import QP, BranchAndBound, Disjunction, PiqpQP
+
+XI_X, XI_Y, XI_TH, XI_V, XI_A, XI_D = range(6)
+FLIP = np.diag([1.0, 1.0, 1.0, -1.0, -1.0, -1.0])  # planned <- real lag states at the switch
+
+
+@dataclass(frozen=True)
+class MirrorPlannerConfig:
+    """Weights, limits and solver settings of the mirrored-target planner."""
+
+    horizon: int = 60  # N (Table II)
+    dt: float = 0.1
+    model_substeps: int = 2
+    linearisation: Literal["scp", "paper"] = "scp"
+    max_iterations: int = 10  # SCP + Algorithm I rounds per candidate
+    w_trust_position: float = 0.5  # SCP trust region, as a penalty per m^2 of planned x, y moved
+    w_trust_heading: float = 2.0  # ... and per rad^2 of heading
+    converge_position: float = 0.02  # [m] SCP stops when the rollout moves less
+    converge_heading: float = 0.01  # [rad]
+    w_position: float = 0.2  # running cost per m^2 toward the mirrored target
+    w_heading: float = 0.2  # per rad^2
+    w_terminal_position: float = 400.0
+    w_terminal_heading: float = 400.0
+    w_terminal_accel: float = 1.0
+    w_accel_cmd: float = 0.02
+    w_steer_cmd: float = 0.05
+    w_accel_rate: float = 0.5
+    w_steer_rate: float = 2.0
+    obstacle_margin: float = 0.04  # [m] planned clearance to infeasible regions
+    mirror_margin: float = 1.1  # reverse / angle: l_mi >= margin * r_min (1 - cos psi)
+    node_limit: int = 300
+    time_limit_s: float = 0.5
+
+
+@dataclass(frozen=True)
+class Candidate:
+    direction: int  # +1: forward first, -1: reverse first
+    switch: int | None  # switch step s, None for a plan without a switch
+
+
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """A plan in the real frame, ready to execute."""
+
+    commands: np.ndarray  # (N, 2) real a_cmd, delta_cmd (negated after the switch)
+    states: np.ndarray  # (N + 1, 6) predicted real states at the control steps
+    candidate: Candidate
+    switch_point: tuple[float, float] | None
+    mirror: MirrorLine
+    planned_states: np.ndarray  # (N + 1, 6) the monodirectional, mirror-frame states
+    cost: float
+    terminal_error: tuple[float, float]  # [m], [rad] predicted real error at step N
+    collision_free: bool
+    stats: PlanStats = field(default=None)  # type: ignore[assignment]
+
+
+class MirrorPlanner:
+    """Plans toward the mirrored target from a measured vehicle state."""
+
+    def __init__(self, geometry: ScenarioGeometry, config: MirrorPlannerConfig | None = None, miqp=None):
+        self.g = geometry
+        self.p = geometry.vehicle
+        self.cfg = cfg = config or MirrorPlannerConfig()
+        self.N = cfg.horizon
+        self.model = PlanningModel(self.p, cfg.dt, cfg.model_substeps)
+        self.coarse = TruthModel(self.p, cfg.dt, cfg.dt / cfg.model_substeps)
+        self.truth = TruthModel(self.p, cfg.dt, 0.01)
+        self.qp_backend = PiqpQP()
+        self.miqp = miqp or BranchAndBound(self.qp_backend, cfg.node_limit, cfg.time_limit_s)
+        self.line = mirror_line(geometry, margin=cfg.mirror_margin)
+        self._faces, self._vertices = _useful_features(geometry)
+        p = self.p
+        hw = 0.5 * p.width
+        mid = 0.5 * (p.front_length - p.rear_overhang)
+        self.points = np.array(
+            [[p.front_length, hw], [p.front_length, -hw], [-p.rear_overhang, -hw],
+             [-p.rear_overhang, hw], [mid, hw], [mid, -hw]]  # fmt: skip
+        )  # the paper's six feature points: corners and the middles of the long sides
+        # Car faces as (body normal, offset): front, rear, left, right.
+        self.car_faces = ((np.array([1.0, 0.0]), p.front_length), (np.array([-1.0, 0.0]), p.rear_overhang),
+                          (np.array([0.0, 1.0]), hw), (np.array([0.0, -1.0]), hw))  # fmt: skip
+        N = self.N
+        self.n_states = NX * (N + 1)
+        self.iu0 = self.n_states
+        self.iS = self.n_states + NU * N
+        self.nz = self.iS + 2
+        self._dyn_pattern()
+
+    # --------------------------------------------------------------- indices
+    def ix(self, i: int, j: int) -> int:
+        return NX * i + j
+
+    def iu(self, i: int, j: int) -> int:
+        return self.iu0 + NU * i + j
+
+    def _dyn_pattern(self) -> None:
+        """Triplet pattern of the equality rows: initial state, dynamics, switch link."""
+        N = self.N
+        rows, cols = [], []
+        for j in range(NX):
+            rows.append(j), cols.append(self.ix(0, j))
+        r0 = NX
+        for i in range(N):
+            for a in range(NX):
+                r = r0 + NX * i + a
+                rows.append(r), cols.append(self.ix(i + 1, a))
+                for b in range(NX):
+                    rows.append(r), cols.append(self.ix(i, b))
+                for b in range(NU):
+                    rows.append(r), cols.append(self.iu(i, b))
+        self._n_dyn_rows = NX + NX * N
+        self._dyn_rows = np.array(rows)
+        self._dyn_cols = np.array(cols)
+
+    # ------------------------------------------------------------------ plan
+    def plan(self, state: VehicleState, candidates: list[Candidate] | None = None) -> Plan | None:
+        """Best collision-free plan over ``candidates`` (default: ``self.candidates``)."""
+        t0 = time.perf_counter()
+        xi0 = state.as_array()
+        cands = candidates or self.candidates(state)
+        best: Plan | None = None
+        totals = {"iterations": 0, "qp_solves": 0, "nodes": 0}
+        tried = []
+        for cand in cands:
+            plan, st = self._solve_candidate(xi0, cand)
+            for k in totals:
+                totals[k] += st[k]
+            tried.append((cand, None if plan is None else round(plan.cost, 3), st["status"]))
+            if plan is not None and plan.collision_free and (best is None or plan.cost < best.cost):
+                best = plan
+        status = "ok" if best is not None else "infeasible"
+        stats = PlanStats(time.perf_counter() - t0, status, totals["iterations"], totals["qp_solves"],
+                          totals["nodes"], best.cost if best else math.nan, {"candidates": tried})  # fmt: skip
+        return replace(best, stats=stats) if best is not None else _failed(stats)
+
+    def candidates(self, state: VehicleState) -> list[Candidate]:
+        """Switch steps to try: the geometry's first direction, both when standing in the slot area."""
+        first = -1 if self.g.parking_type is ParkingType.PARALLEL else 1
+        if abs(state.v) > 0.1:
+            dirs = [1 if state.v > 0 else -1]
+        else:
+            dirs = [first, -first]
+        s_est = self._switch_estimate(state)
+        out = []
+        for d in dirs:
+            for s in sorted({s_est, max(6, int(0.6 * s_est))}):
+                out.append(Candidate(d, s))
+        out.append(Candidate(dirs[0], None))
+        return out
+
+    def _switch_estimate(self, state: VehicleState) -> int:
+        off = self.line.offset((state.x, state.y))
+        dist = abs(self.line.distance - off) + 0.5
+        t = 2.0 * math.sqrt(dist / 1.0)  # accelerate then brake at about 1 m/s^2
+        return int(min(max(round(t / self.cfg.dt), 8), self.N - 20))
+
+    # ------------------------------------------------------------- candidate
+    def _solve_candidate(self, xi0: np.ndarray, cand: Candidate):
+        cfg, N = self.cfg, self.N
+        theta_t = _unwrap_near(self.g.target[2], xi0[XI_TH])
+        P, c = self._cost(cand, theta_t)
+        P_trust = (P + self._trust_diag()).tocsc()
+        P_trust.sum_duplicates()
+        theta_set: dict[tuple[int, int], None] = {}
+        ref_real = ref_u = None  # the last rollout (half steps) and its planned controls
+        best: Plan | None = None
+        st = {"iterations": 0, "qp_solves": 0, "nodes": 0, "status": "failed"}
+        angle = 0.5 * (xi0[XI_TH] + theta_t)
+        for it in range(cfg.max_iterations):
+            st["iterations"] += 1
+            if it == 0 or cfg.linearisation == "paper":
+                lin = self.model.paper_linearisation(N, angle, 1.0 * cand.direction)
+            else:
+                ref_planned = self._to_planned(ref_real, cand)
+                lin_at = ref_planned.copy()
+                if cand.switch is not None:  # step s starts from the flipped lag states
+                    lin_at[cand.switch] = FLIP @ lin_at[cand.switch]
+                lin = self.model.jacobian_linearisation(lin_at, ref_u)
+            trust = it > 0 and cfg.linearisation == "scp"
+            qp, disj, active = self._build(xi0, cand, theta_t, P_trust if trust else P, c, lin, ref_real,
+                                           theta_set, trust)  # fmt: skip
+            if disj:
+                res = self.miqp.solve(qp, disj, active)
+                st["qp_solves"] += res.qp_solves
+                st["nodes"] += res.nodes
+                x = res.x
+            else:
+                r = self.qp_backend.solve(qp)
+                st["qp_solves"] += 1
+                x = r.x
+            if x is None:
+                st["status"] = "infeasible"
+                break
+            u_planned = x[self.iu0 : self.iS].reshape(N, NU)
+            real = self._rollout(xi0, u_planned, cand)
+            hits = self._collisions(real)
+            plan = self._make_plan(cand, u_planned, real, theta_t, not hits)
+            if not hits and (best is None or plan.cost < best.cost):
+                best = plan
+            if hits and (it >= 1 or cfg.linearisation == "paper"):
+                # Algorithm I: constrain the colliding steps (after one accurate
+                # re-linearisation of the obstacle-free QP, so the rows are linearised
+                # about a trajectory the car can follow).
+                for i, k in hits:
+                    theta_set[(i, k)] = None
+            elif ref_real is not None and cfg.linearisation == "scp" and _converged(real, ref_real, cfg):
+                break
+            elif cfg.linearisation == "paper":
+                break
+            ref_real, ref_u = real, u_planned
+        if best is not None:
+            st["status"] = "ok"
+        return best, st
+
+    # ------------------------------------------------------------------ cost
+    def _cost(self, cand: Candidate, theta_t: float):
+        """P, c of sum w * residual^2 (piqp: 1/2 z'Pz + c'z)."""
+        cfg, N = self.cfg, self.N
+        kappa = 1.0 if cand.switch is not None else 0.0
+        tx, ty, _ = self.g.target
+        T = ((1 - 2 * kappa) * tx, (1 - 2 * kappa) * ty)  # residual = p_i - 2 kappa S - T
+        rows, cols, vals, k0, w = [], [], [], [], []
+        r = 0
+
+        def add(entries, const, weight):
+            nonlocal r
+            for col, v in entries:
+                rows.append(r), cols.append(col), vals.append(v)
+            k0.append(const), w.append(weight)
+            r += 1
+
+        for i in range(1, N + 1):
+            wp = cfg.w_terminal_position if i == N else cfg.w_position * cfg.dt
+            wh = cfg.w_terminal_heading if i == N else cfg.w_heading * cfg.dt
+            for j, tj in ((XI_X, T[0]), (XI_Y, T[1])):
+                add([(self.ix(i, j), 1.0), (self.iS + j, -2.0 * kappa)], -tj, wp)
+            add([(self.ix(i, XI_TH), 1.0)], -theta_t, wh)
+        add([(self.ix(N, XI_A), 1.0)], 0.0, cfg.w_terminal_accel)
+        for i in range(N):
+            add([(self.iu(i, 0), 1.0)], 0.0, cfg.w_accel_cmd * cfg.dt)
+            add([(self.iu(i, 1), 1.0)], 0.0, cfg.w_steer_cmd * cfg.dt)
+            if i > 0 and i != cand.switch:  # no rate cost across the switch (commands flip)
+                add([(self.iu(i, 0), 1.0), (self.iu(i - 1, 0), -1.0)], 0.0, cfg.w_accel_rate)
+                add([(self.iu(i, 1), 1.0), (self.iu(i - 1, 1), -1.0)], 0.0, cfg.w_steer_rate)
+        L = sp.csr_matrix((vals, (rows, cols)), shape=(r, self.nz))
+        W = sp.diags(w)
+        P = sp.triu(2.0 * (L.T @ W @ L)).tocsc()  # piqp reads the upper triangle
+        c = 2.0 * (L.T @ (np.asarray(w) * np.asarray(k0)))
+        return P, c
+
+    def _trust_diag(self) -> sp.csc_matrix:
+        cfg = self.cfg
+        d = np.zeros(self.nz)
+        for j, w in ((XI_X, cfg.w_trust_position), (XI_Y, cfg.w_trust_position), (XI_TH, cfg.w_trust_heading)):
+            d[NX * np.arange(1, self.N + 1) + j] = 2.0 * w
+        return sp.diags(d, format="csc")
+
+    # ----------------------------------------------------------------- build
+    def _build(self, xi0, cand, theta_t, P, c, lin, ref_real, theta_set, trust: bool):
+        cfg, N, p = self.cfg, self.N, self.p
+        A_, B_, c_ = lin
+        s = cand.switch
+        # Equalities: initial state, dynamics (flip at the switch), switch link.
+        M = A_.copy()
+        if s is not None:  # xi_{s+1} = A_s (FLIP xi_s) + B_s u_s + c_s
+            M[s] = A_[s] @ FLIP
+        data = [np.ones(NX)]
+        blocks = np.concatenate([np.ones((N, NX, 1)), -M, -B_], axis=2)  # per row: [1, -M row, -B row]
+        data.append(blocks.reshape(-1))
+        vals = np.concatenate(data)
+        link_s = s if s is not None else N
+        rows = np.concatenate([self._dyn_rows, [self._n_dyn_rows] * 2, [self._n_dyn_rows + 1] * 2])
+        cols = np.concatenate([self._dyn_cols, [self.iS, self.ix(link_s, XI_X), self.iS + 1, self.ix(link_s, XI_Y)]])
+        vals = np.concatenate([vals, [1.0, -1.0, 1.0, -1.0]])
+        A = sp.csc_matrix((vals, (rows, cols)), shape=(self._n_dyn_rows + 2, self.nz))
+        b = np.concatenate([xi0, c_.reshape(-1), [0.0, 0.0]])
+        # Bounds.
+        x_l = np.full(self.nz, -np.inf)
+        x_u = np.full(self.nz, np.inf)
+        d = cand.direction
+        for i in range(1, N + 1):
+            after = s is not None and i > s
+            x_l[self.ix(i, XI_V)], x_u[self.ix(i, XI_V)] = (0.0, p.v_max) if d > 0 else (p.v_min, 0.0)
+            x_l[self.ix(i, XI_A)], x_u[self.ix(i, XI_A)] = (-p.a_max, -p.a_min) if after else (p.a_min, p.a_max)
+            x_l[self.ix(i, XI_D)], x_u[self.ix(i, XI_D)] = -p.max_steer, p.max_steer
+        for i in range(N):
+            after = s is not None and i >= s
+            x_l[self.iu(i, 0)], x_u[self.iu(i, 0)] = (-p.a_max, -p.a_min) if after else (p.a_min, p.a_max)
+            x_l[self.iu(i, 1)], x_u[self.iu(i, 1)] = -p.max_steer, p.max_steer
+        for i in ([s] if s is not None else []) + [N]:
+            x_l[self.ix(i, XI_V)] = x_u[self.ix(i, XI_V)] = 0.0
+        if trust and ref_real is not None:  # penalty w (z - z_ref)^2: its linear part
+            pl = self._to_planned(ref_real, cand)
+            c = c.copy()
+            for j, w in ((XI_X, cfg.w_trust_position), (XI_Y, cfg.w_trust_position), (XI_TH, cfg.w_trust_heading)):
+                idx = NX * np.arange(1, N + 1) + j
+                c[idx] -= 2.0 * w * pl[1:, j]
+        # Inequalities: the mirror line, then obstacle alternatives.
+        g_rows, g_cols, g_vals, h_l, h_u, active = [], [], [], [], [], []
+        ln = self.line
+        n0, n1 = ln.normal
+        g_rows += [0, 0]
+        g_cols += [self.iS, self.iS + 1]
+        g_vals += [n0, n1]
+        bound = n0 * ln.target_xy[0] + n1 * ln.target_xy[1] + ln.distance
+        if s is None:
+            h_l.append(-np.inf), h_u.append(np.inf)
+        elif ln.fixed:
+            h_l.append(bound), h_u.append(bound)
+        else:
+            h_l.append(bound), h_u.append(np.inf)
+        active.append(h_l[-1])
+        disj: list[Disjunction] = []
+        if theta_set and ref_real is not None:
+            self._obstacle_rows(cand, ref_real, theta_set, g_rows, g_cols, g_vals, h_l, h_u, active, disj)
+        G = sp.csc_matrix((g_vals, (g_rows, g_cols)), shape=(len(h_l), self.nz))
+        qp = QP(P, c, A, b, G, np.array(h_l, float), np.array(h_u, float), x_l, x_u)
+        return qp, disj, np.array(active, float)
+
+    def _real_pose_coeffs(self, i: int, cand: Candidate):
+        """real p_i = sign * p_i + twice * S."""
+        if cand.switch is not None and i > cand.switch:
+            return -1.0, 2.0
+        return 1.0, 0.0
+
+    def _obstacle_rows(self, cand, ref_real, theta_set, g_rows, g_cols, g_vals, h_l, h_u, active, disj):
+        margin = self.cfg.obstacle_margin
+        ref = ref_real[:: self.cfg.model_substeps]  # real states at the control steps
+
+        def add_row(i, coef_p, coef_th, lower, sign, twice):
+            r = len(h_l)
+            g_rows.extend([r, r, r])
+            g_cols.extend([self.ix(i, XI_X), self.ix(i, XI_Y), self.ix(i, XI_TH)])
+            g_vals.extend([sign * coef_p[0], sign * coef_p[1], coef_th])
+            if twice:
+                g_rows.extend([r, r])
+                g_cols.extend([self.iS, self.iS + 1])
+                g_vals.extend([twice * coef_p[0], twice * coef_p[1]])
+            h_u.append(np.inf)
+            return r, lower
+
+        for (i, k) in sorted(theta_set):
+            sign, twice = self._real_pose_coeffs(i, cand)
+            th = ref[i, XI_TH]
+            ct, st_ = math.cos(th), math.sin(th)
+            Pbar = ref[i, :2]
+            faces = self._faces[k]
+            for cx, cy in self.points:
+                rc = np.array([ct * cx - st_ * cy, st_ * cx + ct * cy])  # R(th) c
+                drc = np.array([-st_ * cx - ct * cy, ct * cx - st_ * cy])  # dR/dth c
+                alts = []
+                for nrm, off in faces:
+                    coef_th = float(nrm @ drc)
+                    lower = off + margin - float(nrm @ (rc - th * drc))
+                    r, lo = add_row(i, nrm, coef_th, lower, sign, twice)
+                    alts.append((r, lo))
+                self._register(alts, h_l, active, disj)
+            centre = Pbar + self.p.center_offset * np.array([ct, st_])
+            for q in self._vertices[k]:
+                if np.hypot(*(q - centre)) > 0.5 * self.p.length + 1.5:
+                    continue
+                alts = []
+                for nb, off in self.car_faces:
+                    nw = np.array([ct * nb[0] - st_ * nb[1], st_ * nb[0] + ct * nb[1]])
+                    dnw = np.array([-st_ * nb[0] - ct * nb[1], ct * nb[0] - st_ * nb[1]])
+                    # nw(th).(q - P) >= off + margin, linearised about (th, Pbar)
+                    k_th = float(dnw @ (q - Pbar))
+                    lower = off + margin - float(nw @ q) + k_th * th
+                    r, lo = add_row(i, -nw, k_th, lower, sign, twice)
+                    alts.append((r, lo))
+                self._register(alts, h_l, active, disj)
+
+    @staticmethod
+    def _register(alts, h_l, active, disj):
+        if len(alts) == 1:  # a single face: an ordinary constraint
+            r, lo = alts[0]
+            h_l.append(lo)
+            active.append(lo)
+            return
+        for r, lo in alts:
+            h_l.append(-np.inf)
+            active.append(lo)
+        disj.append(Disjunction(tuple(r for r, _ in alts)))
+
+    # --------------------------------------------------------------- rollout
+    def _real_commands(self, u_planned: np.ndarray, cand: Candidate) -> np.ndarray:
+        u = u_planned.copy()
+        if cand.switch is not None:
+            u[cand.switch :] *= -1.0  # Eq. (42)
+        return u
+
+    def _rollout(self, xi0: np.ndarray, u_planned: np.ndarray, cand: Candidate) -> np.ndarray:
+        """Real states at every half step: (2N + 1, 6); even rows are the control steps."""
+        u = self._real_commands(u_planned, cand)
+        out = [xi0]
+        s = xi0
+        for a, d in u:
+            sub = self.coarse.step(s, a, d)[:, :6]
+            out.extend(sub)
+            s = sub[-1]
+        return np.array(out)
+
+    def _to_planned(self, real_half: np.ndarray, cand: Candidate) -> np.ndarray:
+        """Planned (mirror-frame) states of a real rollout: the reflection after the switch."""
+        real = real_half[:: self.cfg.model_substeps]
+        pl = real.copy()
+        s = cand.switch
+        if s is not None:
+            S = real[s, :2]
+            pl[s + 1 :, :2] = 2 * S - real[s + 1 :, :2]
+            pl[s + 1 :, 3:] *= -1.0
+        return pl
+
+    def _collisions(self, real_half: np.ndarray) -> list[tuple[int, int]]:
+        """(step, obstacle) pairs to constrain: steps next to any colliding half step."""
+        pen = self.g.checker.penetration(real_half[:, 0], real_half[:, 1], real_half[:, 2])
+        hit = pen > -1e-9
+        out = set()
+        m = self.cfg.model_substeps
+        for h, k in zip(*np.nonzero(hit)):
+            for j in {h // m, -(-h // m)}:  # the control steps around half step h
+                if 1 <= j <= self.N:
+                    out.add((int(j), int(k)))
+        return sorted(out)
+
+    def _make_plan(self, cand, u_planned, real_half, theta_t, clear) -> Plan:
+        real = real_half[:: self.cfg.model_substeps]
+        tx, ty, _ = self.g.target
+        pos_err = float(np.hypot(real[-1, 0] - tx, real[-1, 1] - ty))
+        th_err = float(abs(real[-1, 2] - theta_t))
+        cfg = self.cfg
+        run = np.hypot(real[1:, 0] - tx, real[1:, 1] - ty) ** 2 * cfg.w_position * cfg.dt
+        cost = float(cfg.w_terminal_position * pos_err**2 + cfg.w_terminal_heading * th_err**2 + run.sum())
+        S = tuple(real[cand.switch, :2]) if cand.switch is not None else None
+        planned = self._to_planned(real_half, cand)
+        return Plan(self._real_commands(u_planned, cand), real, cand, S, self.line, planned, cost,
+                    (pos_err, th_err), clear)  # fmt: skip
+
+
+def _failed(stats: PlanStats) -> None:
+    _failed.last_stats = stats  # type: ignore[attr-defined]
+    return None
+
+
+def _converged(real: np.ndarray, ref: np.ndarray, cfg: MirrorPlannerConfig) -> bool:
+    dp = np.hypot(real[:, 0] - ref[:, 0], real[:, 1] - ref[:, 1]).max()
+    dth = np.abs(real[:, 2] - ref[:, 2]).max()
+    return dp < cfg.converge_position and dth < cfg.converge_heading
+
+
+def _unwrap_near(angle: float, reference: float) -> float:
+    return angle + 2 * math.pi * round((reference - angle) / (2 * math.pi))
+
+
+def _useful_features(g: ScenarioGeometry):
+    """Per obstacle: faces next to free space near the slot, and vertices that can pierce the car.
+
+    A face (outward normal n, offset b: outside is n.q >= b) is useful when some point
+    just outside it, within the window around the slot and road, is free of obstacles.
+    """
+    polys = g.obstacles.polygons
+    slot = g.slot
+    x_lo, x_hi = float(slot[:, 0].min()) - 8.0, float(slot[:, 0].max()) + 10.0
+    y_lo, y_hi = float(slot[:, 1].min()) - 0.5, g.road_width + 0.5
+
+    def free(q):
+        if not (x_lo <= q[0] <= x_hi and y_lo <= q[1] <= y_hi):
+            return False
+        return not any(_inside(poly, q) for poly in polys)
+
+    faces, vertices = [], []
+    for poly in polys:
+        f, useful_edge = [], []
+        n_v = len(poly)
+        for e in range(n_v):
+            a, b = poly[e], poly[(e + 1) % n_v]
+            d = b - a
+            n = np.array([d[1], -d[0]]) / np.hypot(*d)  # outward for CCW
+            pts = [a + t * d + 0.05 * n for t in np.linspace(0.02, 0.98, 41)]
+            ok = any(free(q) for q in pts)
+            useful_edge.append(ok)
+            if ok:
+                f.append((n, float(n @ a)))
+        faces.append(f)
+        vs = [poly[e] for e in range(n_v) if useful_edge[e] and useful_edge[e - 1]
+              and x_lo <= poly[e][0] <= x_hi and y_lo <= poly[e][1] <= y_hi]  # fmt: skip
+        vertices.append(vs)
+    return faces, vertices
+
+
+def _inside(poly: np.ndarray, q) -> bool:
+    d = np.roll(poly, -1, axis=0) - poly
+    cross = d[:, 0] * (q[1] - poly[:, 1]) - d[:, 1] * (q[0] - poly[:, 0])
+    return bool(np.all(cross > 1e-12))

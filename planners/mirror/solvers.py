@@ -1,0 +1,227 @@
+"""QP and disjunctive-MIQP solvers behind one small interface.
+
+A QP is ``min 1/2 z'Pz + c'z`` s.t. ``Az = b``, ``h_l <= Gz <= h_u``, ``x_l <= z <= x_u``
+(scipy CSC matrices, infinite bounds allowed). The MIQP of Eq. (40) is handed over in
+disjunctive form: each ``Disjunction`` lists rows of G, one per alternative (a face of an
+obstacle a point stays behind); at least one alternative must hold. Rows are *active*
+at their ``h_l`` and inactive at ``-inf``, so every node of a search shares one sparsity
+pattern and only ``h_l`` is refilled. Big-M with binaries z_l (Eq. 40) describes the same
+feasible set; solving the disjunctions directly avoids big-M's weak relaxation.
+
+Backends: ``PiqpQP`` (piqp, pattern-aware), ``BranchAndBound`` (depth-first B&B over
+any QP backend), ``Enumeration`` (every assignment; the reference for tests).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import piqp
+import scipy.sparse as sp
+
+
+@dataclass(eq=False)
+class QP:
+    P: sp.csc_matrix
+    c: np.ndarray
+    A: sp.csc_matrix
+    b: np.ndarray
+    G: sp.csc_matrix
+    h_l: np.ndarray
+    h_u: np.ndarray
+    x_l: np.ndarray
+    x_u: np.ndarray
+
+
+@dataclass(frozen=True)
+class QPResult:
+    x: np.ndarray | None
+    obj: float
+    status: str  # "solved", "infeasible", "failed"
+    iterations: int
+    solve_time_s: float
+
+
+@dataclass(frozen=True)
+class Disjunction:
+    """At least one of these G rows must be active (row >= its h_l)."""
+
+    rows: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class MIQPResult:
+    x: np.ndarray | None
+    obj: float
+    status: str  # "solved", "infeasible", "node_limit", "time_limit"
+    nodes: int
+    qp_solves: int
+    assignment: tuple[int, ...] = ()  # chosen row per disjunction (-1: satisfied unforced)
+    stats: dict = field(default_factory=dict)
+
+
+def _same_pattern(a: sp.csc_matrix | None, b: sp.csc_matrix | None) -> bool:
+    if a is None or b is None:
+        return a is b
+    return (
+        a.shape == b.shape
+        and a.nnz == b.nnz
+        and np.array_equal(a.indptr, b.indptr)
+        and np.array_equal(a.indices, b.indices)
+    )
+
+
+class PiqpQP:
+    """piqp's sparse solver; sets up on a new sparsity pattern, otherwise only refills."""
+
+    def __init__(self, eps_abs: float = 1e-6, eps_rel: float = 1e-7, max_iter: int = 200):
+        self.eps_abs, self.eps_rel, self.max_iter = eps_abs, eps_rel, max_iter
+        self._solver: piqp.SparseSolver | None = None
+        self._last: QP | None = None
+        self.setups = 0
+        self.updates = 0
+
+    def _new_solver(self) -> piqp.SparseSolver:
+        s = piqp.SparseSolver()
+        s.settings.eps_abs = self.eps_abs
+        s.settings.eps_rel = self.eps_rel
+        s.settings.max_iter = self.max_iter
+        s.settings.verbose = False
+        return s
+
+    def solve(self, qp: QP) -> QPResult:
+        t0 = time.perf_counter()
+        for name in ("P", "A", "G"):  # piqp misreads CSC with duplicates or unsorted indices
+            m = getattr(qp, name)
+            if not m.has_canonical_format:
+                m = m.copy()
+                m.sum_duplicates()
+                setattr(qp, name, m)
+        last = self._last
+        if (
+            self._solver is None
+            or last is None
+            or not (_same_pattern(last.P, qp.P) and _same_pattern(last.A, qp.A) and _same_pattern(last.G, qp.G))
+        ):
+            self._solver = self._new_solver()
+            self._solver.setup(qp.P, qp.c, qp.A, qp.b, qp.G, qp.h_l, qp.h_u, qp.x_l, qp.x_u)
+            self.setups += 1
+        else:
+            changed = {}
+            for name in ("P", "A", "G"):
+                new, old = getattr(qp, name), getattr(last, name)
+                if new is not old and not np.array_equal(new.data, old.data):
+                    changed[name] = new
+            for name in ("c", "b", "h_l", "h_u", "x_l", "x_u"):
+                new, old = getattr(qp, name), getattr(last, name)
+                if new is not old and not np.array_equal(new, old):
+                    changed[name] = new
+            if changed:
+                self._solver.update(**changed)
+            self.updates += 1
+        self._last = qp
+        status = self._solver.solve()
+        r = self._solver.result
+        name = str(status).split(".")[-1]
+        if name == "PIQP_SOLVED":
+            x = np.array(r.x)
+            return QPResult(x, float(r.info.primal_obj), "solved", int(r.info.iter), time.perf_counter() - t0)
+        st = "infeasible" if "INFEASIBLE" in name else "failed"
+        return QPResult(None, math.inf, st, int(r.info.iter), time.perf_counter() - t0)
+
+
+def _slack(qp: QP, x: np.ndarray, active_l: np.ndarray) -> np.ndarray:
+    """G x - active lower bounds (>= 0 where a row holds)."""
+    return qp.G @ x - active_l
+
+
+class BranchAndBound:
+    """Depth-first branch-and-bound over disjunctions, each node a QP.
+
+    A node fixes one alternative for some disjunctions (their rows active). Its QP
+    relaxes the rest (rows inactive), so its cost bounds every completion from below.
+    Disjunctions already satisfied by a node's solution are not branched on; the most
+    violated one is, children ordered by how close each alternative already is.
+    """
+
+    def __init__(self, qp_backend: PiqpQP | None = None, node_limit: int = 400,
+                 time_limit_s: float = 1.0, tol: float = 1e-5):  # fmt: skip
+        self.qp_backend = qp_backend or PiqpQP()
+        self.node_limit = node_limit
+        self.time_limit_s = time_limit_s
+        self.tol = tol
+
+    def solve(self, qp: QP, disjunctions: list[Disjunction], active_bounds: np.ndarray) -> MIQPResult:
+        """``active_bounds[r]``: row r's lower bound when active; ``qp.h_l`` holds -inf there."""
+        t0 = time.perf_counter()
+        base_l = qp.h_l.copy()
+        best_x, best_obj, best_assign = None, math.inf, ()
+        nodes = solves = 0
+        status = "solved"
+        stack: list[tuple[int, ...]] = [tuple([-1] * len(disjunctions))]
+        while stack:
+            if nodes >= self.node_limit:
+                status = "node_limit"
+                break
+            if time.perf_counter() - t0 > self.time_limit_s:
+                status = "time_limit"
+                break
+            assign = stack.pop()
+            nodes += 1
+            h_l = base_l.copy()
+            for r in assign:
+                if r >= 0:
+                    h_l[r] = active_bounds[r]
+            qp.h_l = h_l
+            res = self.qp_backend.solve(qp)
+            solves += 1
+            if res.x is None or res.obj >= best_obj - 1e-9:
+                continue  # infeasible or bounded out
+            slack = qp.G @ res.x - active_bounds
+            worst, worst_j = 0.0, -1
+            for j, d in enumerate(disjunctions):
+                if assign[j] >= 0:
+                    continue
+                best_alt = max(slack[r] for r in d.rows)
+                if best_alt < -self.tol and best_alt < worst:
+                    worst, worst_j = best_alt, j
+            if worst_j < 0:  # every disjunction holds: a feasible leaf
+                best_x, best_obj, best_assign = res.x, res.obj, assign
+                continue
+            rows = sorted(disjunctions[worst_j].rows, key=lambda r: slack[r])  # best last = popped first
+            for r in rows:
+                child = list(assign)
+                child[worst_j] = r
+                stack.append(tuple(child))
+        qp.h_l = base_l
+        if best_x is None and status == "solved":
+            status = "infeasible"
+        return MIQPResult(best_x, best_obj, status if best_x is not None or status != "solved" else "infeasible",
+                          nodes, solves, best_assign,
+                          {"time_s": time.perf_counter() - t0})  # fmt: skip
+
+
+class Enumeration:
+    """Solves every full assignment of alternatives; exponential, for tests and checks."""
+
+    def __init__(self, qp_backend: PiqpQP | None = None):
+        self.qp_backend = qp_backend or PiqpQP()
+
+    def solve(self, qp: QP, disjunctions: list[Disjunction], active_bounds: np.ndarray) -> MIQPResult:
+        base_l = qp.h_l.copy()
+        best_x, best_obj, best_assign, solves = None, math.inf, (), 0
+        for assign in itertools.product(*(d.rows for d in disjunctions)):
+            h_l = base_l.copy()
+            h_l[list(assign)] = active_bounds[list(assign)]
+            qp.h_l = h_l
+            res = self.qp_backend.solve(qp)
+            solves += 1
+            if res.x is not None and res.obj < best_obj:
+                best_x, best_obj, best_assign = res.x, res.obj, assign
+        qp.h_l = base_l
+        return MIQPResult(best_x, best_obj, "solved" if best_x is not None else "infeasible",
+                          solves, solves, best_assign)  # fmt: skip
