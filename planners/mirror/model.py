@@ -67,15 +67,21 @@ class PlanningModel:
         c_ = f[0] - np.einsum("nij,nj->ni", A_, xi_ref[:n]) - np.einsum("nij,nj->ni", B_, u_ref)
         return A_, B_, c_
 
-    def paper_linearisation(self, n: int, angle: float, v_nominal: float, theta_ref: np.ndarray | None = None):
-        """Eqs. (22)-(29): gamma_1,2 about ``angle`` (Eqs. 26-27), v_nominal in Eq. (24)."""
+    def paper_linearisation(self, n: int, angle: float, v_nominal: float):
+        """Eqs. (22)-(29) about the linearising ``angle`` with nominal speed ``v_nominal``.
+
+        The paper's gamma_1 v = (cos A - sin A (theta - A)) v is bilinear in v and theta;
+        its first-order expansion about (v_nominal, A) keeps gamma_1(A) = cos A on v and
+        puts -v_nominal sin A on theta (likewise for y). Without the theta term a fixed
+        angle could not move the car sideways at all. Eq. (24) uses v_nominal as printed.
+        """
         p, dt = self.params, self.dt
-        th = np.full(n, angle) if theta_ref is None else np.asarray(theta_ref[:n], float)
-        g1 = -th * math.sin(angle) + math.cos(angle) + angle * math.sin(angle)
-        g2 = th * math.cos(angle) + math.sin(angle) - angle * math.cos(angle)
+        ca, sa = math.cos(angle), math.sin(angle)
         A_ = np.tile(np.eye(NX), (n, 1, 1))
-        A_[:, X, V] = dt * g1
-        A_[:, Y, V] = dt * g2
+        A_[:, X, V] = dt * ca
+        A_[:, X, TH] = -dt * v_nominal * sa
+        A_[:, Y, V] = dt * sa
+        A_[:, Y, TH] = dt * v_nominal * ca
         A_[:, TH, D] = dt * v_nominal / p.wheelbase
         A_[:, V, A] = dt
         A_[:, A, A] = 1 - dt / p.tau_a
@@ -83,4 +89,7 @@ class PlanningModel:
         B_ = np.zeros((n, NX, NU))
         B_[:, A, 0] = dt / p.tau_a
         B_[:, D, 1] = dt / p.tau_delta
-        return A_, B_, np.zeros((n, NX))
+        c_ = np.zeros((n, NX))
+        c_[:, X] = dt * v_nominal * sa * angle
+        c_[:, Y] = -dt * v_nominal * ca * angle
+        return A_, B_, c_

@@ -35,7 +35,7 @@ from mirrorpark_env.vehicle import TruthModel, VehicleState
 from ..base import PlanStats
 from .mirror_line import MirrorLine, mirror_line
 from .model import NU, NX, PlanningModel
-from .solvers import QP, BranchAndBound, Disjunction, PiqpQP
+from .solvers import INACTIVE, QP, BranchAndBound, Disjunction, PiqpQP
 
 XI_X, XI_Y, XI_TH, XI_V, XI_A, XI_D = range(6)
 FLIP = np.diag([1.0, 1.0, 1.0, -1.0, -1.0, -1.0])  # planned <- real lag states at the switch
@@ -49,7 +49,7 @@ class MirrorPlannerConfig:
     dt: float = 0.1
     model_substeps: int = 2
     linearisation: Literal["scp", "paper"] = "scp"
-    max_iterations: int = 10  # SCP + Algorithm I rounds per candidate
+    max_iterations: int = 6  # SCP + Algorithm I rounds per candidate
     w_trust_position: float = 0.5  # SCP trust region, as a penalty per m^2 of planned x, y moved
     w_trust_heading: float = 2.0  # ... and per rad^2 of heading
     converge_position: float = 0.02  # [m] SCP stops when the rollout moves less
@@ -64,8 +64,9 @@ class MirrorPlannerConfig:
     w_accel_rate: float = 0.5
     w_steer_rate: float = 2.0
     obstacle_margin: float = 0.04  # [m] planned clearance to infeasible regions
+    w_slack: float = 5000.0  # exact penalty per m of obstacle-row violation (rows are soft)
     mirror_margin: float = 1.1  # reverse / angle: l_mi >= margin * r_min (1 - cos psi)
-    node_limit: int = 300
+    node_limit: int = 12
     time_limit_s: float = 0.5
 
 
@@ -170,9 +171,67 @@ class MirrorPlanner:
                           totals["nodes"], best.cost if best else math.nan, {"candidates": tried})  # fmt: skip
         return replace(best, stats=stats) if best is not None else _failed(stats)
 
+    @property
+    def first_direction(self) -> int:
+        """Parallel parking reverses to the mirror line first; reverse and angle drive forward."""
+        return -1 if self.g.parking_type is ParkingType.PARALLEL else 1
+
+    def _seed(self, xi0: np.ndarray, cand: Candidate) -> np.ndarray:
+        """A real rollout of the manoeuvre's classic shape, to linearise about first.
+
+        Speed: a sine over each segment, sized to the distance the segment has to cover.
+        Steering: a heading controller tracking a reference; for parallel parking an
+        S-curve reversing to the mirror line then forward to the target heading, for
+        reverse and angle parking forward toward the switch heading, then full lock back.
+        """
+        N, dt, p = self.N, self.cfg.dt, self.p
+        s = cand.switch if cand.switch is not None else N
+        tx, ty, tth = self.g.target
+        tth = _unwrap_near(tth, xi0[XI_TH])
+        ln = self.line
+        u_t = np.array([math.cos(tth), math.sin(tth)])
+        S_guess = np.array([tx, ty]) + ln.distance * np.array(ln.normal)
+        if not ln.fixed:  # reverse, angle: out along the slot axis to the car's lane
+            lam = (xi0[XI_Y] - S_guess[1]) / u_t[1] if abs(u_t[1]) > 1e-6 else 0.0
+            S_guess = S_guess + max(lam, 0.0) * u_t
+        p0 = xi0[:2]
+        d1 = float(np.hypot(*(S_guess - p0))) + 0.3 if cand.switch is not None else float(np.hypot(tx - p0[0], ty - p0[1]))
+        d2 = float(np.hypot(S_guess[0] - tx, S_guess[1] - ty)) + 0.3
+        T1, T2 = max(s, 1) * dt, max(N - s, 1) * dt
+        vc1 = min(1.5, d1 * math.pi / (2 * T1))
+        vc2 = min(1.5, d2 * math.pi / (2 * T2))
+        psi = ln.psi if ln.fixed else 0.0
+        th0 = xi0[XI_TH]
+        first = cand.direction == self.first_direction
+        out = [xi0]
+        state = xi0.copy()
+        for i in range(N):
+            seg1 = cand.switch is None or i < s
+            tau = (i + 1) / s if seg1 else (i + 1 - s) / max(N - s, 1)
+            d = cand.direction if seg1 else -cand.direction
+            v_ref = d * (vc1 if seg1 else vc2) * math.sin(math.pi * min(tau, 1.0))
+            if cand.switch is None:
+                th_ref = tth
+            elif seg1:
+                if self.g.parking_type is ParkingType.PARALLEL and first:
+                    th_ref = tth + 0.7 * math.sin(math.pi * tau) + psi * tau  # the S-curve's swing
+                elif first:
+                    th_ref = th0 + (tth - ln.psi - th0) * tau  # toward the switch heading
+                else:
+                    th_ref = th0
+            else:
+                th_ref = tth + psi * (1 - tau) if first and ln.fixed else tth
+            a_cmd = max(p.a_min, min(p.a_max, 3.0 * (v_ref - state[XI_V]) - 0.5 * state[XI_A]))
+            sgn = 1.0 if v_ref >= 0 else -1.0
+            d_cmd = max(-p.max_steer, min(p.max_steer, 2.5 * (th_ref - state[XI_TH]) * sgn))
+            sub = self.coarse.step(state, a_cmd, d_cmd)[:, :6]
+            out.extend(sub)
+            state = sub[-1]
+        return np.array(out)
+
     def candidates(self, state: VehicleState) -> list[Candidate]:
         """Switch steps to try: the geometry's first direction, both when standing in the slot area."""
-        first = -1 if self.g.parking_type is ParkingType.PARALLEL else 1
+        first = self.first_direction
         if abs(state.v) > 0.1:
             dirs = [1 if state.v > 0 else -1]
         else:
@@ -180,7 +239,7 @@ class MirrorPlanner:
         s_est = self._switch_estimate(state)
         out = []
         for d in dirs:
-            for s in sorted({s_est, max(6, int(0.6 * s_est))}):
+            for s in sorted({s_est, min(self.N - 12, int(1.4 * s_est))}):
                 out.append(Candidate(d, s))
         out.append(Candidate(dirs[0], None))
         return out
@@ -205,8 +264,18 @@ class MirrorPlanner:
         angle = 0.5 * (xi0[XI_TH] + theta_t)
         for it in range(cfg.max_iterations):
             st["iterations"] += 1
-            if it == 0 or cfg.linearisation == "paper":
+            if cfg.linearisation == "paper":
                 lin = self.model.paper_linearisation(N, angle, 1.0 * cand.direction)
+            elif it == 0:
+                # Seed: a moving reference of the manoeuvre's shape. (The paper's form,
+                # Eqs. 22-27, moves the car at its nominal speed even where the real speed
+                # is zero; linearising about that standstill would freeze the heading.)
+                ref_real = self._seed(xi0, cand)
+                ref_u = self._planned_controls(ref_real, cand)
+                lin_at = self._to_planned(ref_real, cand)
+                if cand.switch is not None:
+                    lin_at[cand.switch] = FLIP @ lin_at[cand.switch]
+                lin = self.model.jacobian_linearisation(lin_at, ref_u)
             else:
                 ref_planned = self._to_planned(ref_real, cand)
                 lin_at = ref_planned.copy()
@@ -214,10 +283,12 @@ class MirrorPlanner:
                     lin_at[cand.switch] = FLIP @ lin_at[cand.switch]
                 lin = self.model.jacobian_linearisation(lin_at, ref_u)
             trust = it > 0 and cfg.linearisation == "scp"
-            qp, disj, active = self._build(xi0, cand, theta_t, P_trust if trust else P, c, lin, ref_real,
-                                           theta_set, trust)  # fmt: skip
+            qp, disj, active, preferred = self._build(
+                xi0, cand, theta_t, P_trust if trust else P, c, lin, ref_real, theta_set, trust,
+                mirror=cand.direction == self.first_direction,
+            )
             if disj:
-                res = self.miqp.solve(qp, disj, active)
+                res = self.miqp.solve(qp, disj, active, preferred)
                 st["qp_solves"] += res.qp_solves
                 st["nodes"] += res.nodes
                 x = res.x
@@ -228,16 +299,13 @@ class MirrorPlanner:
             if x is None:
                 st["status"] = "infeasible"
                 break
-            u_planned = x[self.iu0 : self.iS].reshape(N, NU)
+            u_planned = x[self.iu0 : self.iS].reshape(N, NU)  # slack variables follow S
             real = self._rollout(xi0, u_planned, cand)
             hits = self._collisions(real)
             plan = self._make_plan(cand, u_planned, real, theta_t, not hits)
             if not hits and (best is None or plan.cost < best.cost):
                 best = plan
-            if hits and (it >= 1 or cfg.linearisation == "paper"):
-                # Algorithm I: constrain the colliding steps (after one accurate
-                # re-linearisation of the obstacle-free QP, so the rows are linearised
-                # about a trajectory the car can follow).
+            if hits:  # Algorithm I: constrain the colliding steps
                 for i, k in hits:
                     theta_set[(i, k)] = None
             elif ref_real is not None and cfg.linearisation == "scp" and _converged(real, ref_real, cfg):
@@ -293,7 +361,7 @@ class MirrorPlanner:
         return sp.diags(d, format="csc")
 
     # ----------------------------------------------------------------- build
-    def _build(self, xi0, cand, theta_t, P, c, lin, ref_real, theta_set, trust: bool):
+    def _build(self, xi0, cand, theta_t, P, c, lin, ref_real, theta_set, trust: bool, mirror: bool = True):
         cfg, N, p = self.cfg, self.N, self.p
         A_, B_, c_ = lin
         s = cand.switch
@@ -324,7 +392,7 @@ class MirrorPlanner:
             after = s is not None and i >= s
             x_l[self.iu(i, 0)], x_u[self.iu(i, 0)] = (-p.a_max, -p.a_min) if after else (p.a_min, p.a_max)
             x_l[self.iu(i, 1)], x_u[self.iu(i, 1)] = -p.max_steer, p.max_steer
-        for i in ([s] if s is not None else []) + [N]:
+        for i in ([s] if s is not None else []) + [N]:  # stands at the switch; every plan ends stopped
             x_l[self.ix(i, XI_V)] = x_u[self.ix(i, XI_V)] = 0.0
         if trust and ref_real is not None:  # penalty w (z - z_ref)^2: its linear part
             pl = self._to_planned(ref_real, cand)
@@ -340,19 +408,29 @@ class MirrorPlanner:
         g_cols += [self.iS, self.iS + 1]
         g_vals += [n0, n1]
         bound = n0 * ln.target_xy[0] + n1 * ln.target_xy[1] + ln.distance
-        if s is None:
-            h_l.append(-np.inf), h_u.append(np.inf)
+        if s is None or not mirror:
+            h_l.append(INACTIVE), h_u.append(np.inf)
         elif ln.fixed:
-            h_l.append(bound), h_u.append(bound)
+            h_l.append(bound), h_u.append(bound + 0.02)  # on the line (to 2 cm)
         else:
             h_l.append(bound), h_u.append(np.inf)
         active.append(h_l[-1])
         disj: list[Disjunction] = []
+        preferred: list[int] = []
         if theta_set and ref_real is not None:
-            self._obstacle_rows(cand, ref_real, theta_set, g_rows, g_cols, g_vals, h_l, h_u, active, disj)
+            self._obstacle_rows(cand, ref_real, theta_set, g_rows, g_cols, g_vals, h_l, h_u, active, disj, preferred)
         G = sp.csc_matrix((g_vals, (g_rows, g_cols)), shape=(len(h_l), self.nz))
+        n_s = len(h_l)
+        # Every row is soft: row + slack >= lower bound, slack >= 0 at w_slack per m (an
+        # exact penalty). No QP is infeasible; the exact footprint check decides.
+        P = sp.block_diag((P, sp.csc_matrix((n_s, n_s))), format="csc")
+        c = np.concatenate([c, np.full(n_s, cfg.w_slack)])
+        A = sp.hstack([A, sp.csc_matrix((A.shape[0], n_s))], format="csc")
+        G = sp.hstack([G, sp.identity(n_s, format="csc")], format="csc")
+        x_l = np.concatenate([x_l, np.zeros(n_s)])
+        x_u = np.concatenate([x_u, np.full(n_s, np.inf)])
         qp = QP(P, c, A, b, G, np.array(h_l, float), np.array(h_u, float), x_l, x_u)
-        return qp, disj, np.array(active, float)
+        return qp, disj, np.array(active, float), preferred
 
     def _real_pose_coeffs(self, i: int, cand: Candidate):
         """real p_i = sign * p_i + twice * S."""
@@ -360,7 +438,13 @@ class MirrorPlanner:
             return -1.0, 2.0
         return 1.0, 0.0
 
-    def _obstacle_rows(self, cand, ref_real, theta_set, g_rows, g_cols, g_vals, h_l, h_u, active, disj):
+    def _obstacle_rows(self, cand, ref_real, theta_set, g_rows, g_cols, g_vals, h_l, h_u, active, disj, preferred):
+        """Rows of Eq. (40) at the steps in ``theta_set``, linearised about the reference.
+
+        Each feature point must stay behind one face of the obstacle, each obstacle vertex
+        that could pierce the car behind one face of the car. ``preferred`` gets, per
+        disjunction, the alternative the reference satisfies best (B&B tries it first).
+        """
         margin = self.cfg.obstacle_margin
         ref = ref_real[:: self.cfg.model_substeps]  # real states at the control steps
 
@@ -385,18 +469,22 @@ class MirrorPlanner:
             for cx, cy in self.points:
                 rc = np.array([ct * cx - st_ * cy, st_ * cx + ct * cy])  # R(th) c
                 drc = np.array([-st_ * cx - ct * cy, ct * cx - st_ * cy])  # dR/dth c
+                q_ref = Pbar + rc
+                slack = [float(nrm @ q_ref) - off for nrm, off in faces]
+                if not faces or max(slack) > 1.0:
+                    continue  # far outside: this point cannot reach the obstacle here
                 alts = []
                 for nrm, off in faces:
                     coef_th = float(nrm @ drc)
                     lower = off + margin - float(nrm @ (rc - th * drc))
                     r, lo = add_row(i, nrm, coef_th, lower, sign, twice)
                     alts.append((r, lo))
-                self._register(alts, h_l, active, disj)
+                self._register(alts, h_l, active, disj, preferred, int(np.argmax(slack)))
             centre = Pbar + self.p.center_offset * np.array([ct, st_])
             for q in self._vertices[k]:
                 if np.hypot(*(q - centre)) > 0.5 * self.p.length + 1.5:
                     continue
-                alts = []
+                alts, slack = [], []
                 for nb, off in self.car_faces:
                     nw = np.array([ct * nb[0] - st_ * nb[1], st_ * nb[0] + ct * nb[1]])
                     dnw = np.array([-st_ * nb[0] - ct * nb[1], ct * nb[0] - st_ * nb[1]])
@@ -405,19 +493,21 @@ class MirrorPlanner:
                     lower = off + margin - float(nw @ q) + k_th * th
                     r, lo = add_row(i, -nw, k_th, lower, sign, twice)
                     alts.append((r, lo))
-                self._register(alts, h_l, active, disj)
+                    slack.append(float(nw @ (q - Pbar)) - off)
+                self._register(alts, h_l, active, disj, preferred, int(np.argmax(slack)))
 
     @staticmethod
-    def _register(alts, h_l, active, disj):
+    def _register(alts, h_l, active, disj, preferred, best: int):
         if len(alts) == 1:  # a single face: an ordinary constraint
             r, lo = alts[0]
             h_l.append(lo)
             active.append(lo)
             return
         for r, lo in alts:
-            h_l.append(-np.inf)
+            h_l.append(INACTIVE)
             active.append(lo)
         disj.append(Disjunction(tuple(r for r, _ in alts)))
+        preferred.append(alts[best][0])
 
     # --------------------------------------------------------------- rollout
     def _real_commands(self, u_planned: np.ndarray, cand: Candidate) -> np.ndarray:
@@ -436,6 +526,20 @@ class MirrorPlanner:
             out.extend(sub)
             s = sub[-1]
         return np.array(out)
+
+    def _planned_controls(self, real_half: np.ndarray, cand: Candidate) -> np.ndarray:
+        """Commands that reproduce a rollout's lag states, in the planned frame."""
+        pl = self._to_planned(real_half, cand)
+        p, dt = self.p, self.cfg.dt
+        ea, ed = math.exp(-dt / p.tau_a), math.exp(-dt / p.tau_delta)
+        a0, a1 = pl[:-1, XI_A], pl[1:, XI_A]
+        d0, d1 = pl[:-1, XI_D], pl[1:, XI_D]
+        if cand.switch is not None:  # step s starts from the flipped lag states
+            a0, d0 = a0.copy(), d0.copy()
+            a0[cand.switch] *= -1
+            d0[cand.switch] *= -1
+        u = np.stack([(a1 - ea * a0) / (1 - ea), (d1 - ed * d0) / (1 - ed)], axis=1)
+        return u
 
     def _to_planned(self, real_half: np.ndarray, cand: Candidate) -> np.ndarray:
         """Planned (mirror-frame) states of a real rollout: the reflection after the switch."""
@@ -474,9 +578,17 @@ class MirrorPlanner:
                     (pos_err, th_err), clear)  # fmt: skip
 
 
+_LAST_FAILURE: list[PlanStats] = []
+
+
 def _failed(stats: PlanStats) -> None:
-    _failed.last_stats = stats  # type: ignore[attr-defined]
+    _LAST_FAILURE[:] = [stats]
     return None
+
+
+def last_failure() -> PlanStats:
+    """Statistics of the most recent planning call that found no plan."""
+    return _LAST_FAILURE[0] if _LAST_FAILURE else PlanStats(0.0, "infeasible")
 
 
 def _converged(real: np.ndarray, ref: np.ndarray, cfg: MirrorPlannerConfig) -> bool:

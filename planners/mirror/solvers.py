@@ -4,9 +4,12 @@ A QP is ``min 1/2 z'Pz + c'z`` s.t. ``Az = b``, ``h_l <= Gz <= h_u``, ``x_l <= z
 (scipy CSC matrices, infinite bounds allowed). The MIQP of Eq. (40) is handed over in
 disjunctive form: each ``Disjunction`` lists rows of G, one per alternative (a face of an
 obstacle a point stays behind); at least one alternative must hold. Rows are *active*
-at their ``h_l`` and inactive at ``-inf``, so every node of a search shares one sparsity
+at their ``h_l`` and inactive at ``INACTIVE``, so every node of a search shares one sparsity
 pattern and only ``h_l`` is refilled. Big-M with binaries z_l (Eq. 40) describes the same
 feasible set; solving the disjunctions directly avoids big-M's weak relaxation.
+
+piqp drops G rows whose bounds are both infinite and does not restore them when an
+update makes them finite, so an inactive row sits at the finite ``INACTIVE`` instead.
 
 Backends: ``PiqpQP`` (piqp, pattern-aware), ``BranchAndBound`` (depth-first B&B over
 any QP backend), ``Enumeration`` (every assignment; the reference for tests).
@@ -17,11 +20,14 @@ from __future__ import annotations
 import itertools
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import piqp
 import scipy.sparse as sp
+
+
+INACTIVE = -1e6  # lower bound of a row that is switched off
 
 
 @dataclass(eq=False)
@@ -120,10 +126,12 @@ class PiqpQP:
                 new, old = getattr(qp, name), getattr(last, name)
                 if new is not old and not np.array_equal(new, old):
                     changed[name] = new
+            if "h_l" in changed or "h_u" in changed:
+                changed.update(h_l=qp.h_l, h_u=qp.h_u)  # piqp wants both sides together
             if changed:
                 self._solver.update(**changed)
             self.updates += 1
-        self._last = qp
+        self._last = replace(qp)  # a snapshot: callers may reassign qp's fields later
         status = self._solver.solve()
         r = self._solver.result
         name = str(status).split(".")[-1]
@@ -155,13 +163,26 @@ class BranchAndBound:
         self.time_limit_s = time_limit_s
         self.tol = tol
 
-    def solve(self, qp: QP, disjunctions: list[Disjunction], active_bounds: np.ndarray) -> MIQPResult:
-        """``active_bounds[r]``: row r's lower bound when active; ``qp.h_l`` holds -inf there."""
+    def solve(self, qp: QP, disjunctions: list[Disjunction], active_bounds: np.ndarray,
+              preferred: list[int] | None = None) -> MIQPResult:  # fmt: skip
+        """``active_bounds[r]``: row r's lower bound when active; ``qp.h_l`` holds ``INACTIVE`` there.
+
+        ``preferred`` (one row per disjunction) seeds the search: that full assignment is
+        solved first, and a feasible result is the first incumbent.
+        """
         t0 = time.perf_counter()
         base_l = qp.h_l.copy()
         best_x, best_obj, best_assign = None, math.inf, ()
         nodes = solves = 0
         status = "solved"
+        if preferred is not None:
+            h_l = base_l.copy()
+            h_l[preferred] = active_bounds[preferred]
+            qp.h_l = h_l
+            res = self.qp_backend.solve(qp)
+            solves += 1
+            if res.x is not None:
+                best_x, best_obj, best_assign = res.x, res.obj, tuple(preferred)
         stack: list[tuple[int, ...]] = [tuple([-1] * len(disjunctions))]
         while stack:
             if nodes >= self.node_limit:
@@ -192,7 +213,8 @@ class BranchAndBound:
             if worst_j < 0:  # every disjunction holds: a feasible leaf
                 best_x, best_obj, best_assign = res.x, res.obj, assign
                 continue
-            rows = sorted(disjunctions[worst_j].rows, key=lambda r: slack[r])  # best last = popped first
+            pref = set(preferred or ())
+            rows = sorted(disjunctions[worst_j].rows, key=lambda r: (r in pref, slack[r]))  # best popped first
             for r in rows:
                 child = list(assign)
                 child[worst_j] = r
@@ -211,7 +233,8 @@ class Enumeration:
     def __init__(self, qp_backend: PiqpQP | None = None):
         self.qp_backend = qp_backend or PiqpQP()
 
-    def solve(self, qp: QP, disjunctions: list[Disjunction], active_bounds: np.ndarray) -> MIQPResult:
+    def solve(self, qp: QP, disjunctions: list[Disjunction], active_bounds: np.ndarray,
+              preferred: list[int] | None = None) -> MIQPResult:  # fmt: skip
         base_l = qp.h_l.copy()
         best_x, best_obj, best_assign, solves = None, math.inf, (), 0
         for assign in itertools.product(*(d.rows for d in disjunctions)):

@@ -1,0 +1,89 @@
+"""The mirrored-target planner as a policy: execute, and replan as in the paper's Fig. 11.
+
+Each plan holds one direction switch. Its commands are executed as planned before the
+switch and negated after it (Eq. 42; the planner already returns them in that form).
+A new plan starts from where the car stands when the last one has run out without the
+target being met, or early when the measured state drifts from the plan's prediction.
+A failed solve stops the car and retries; it never raises.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from mirrorpark_env.scenario import ScenarioGeometry
+from mirrorpark_env.vehicle import VehicleState, to_action
+
+from ..base import PlanStats, Policy
+from .planner import MirrorPlanner, MirrorPlannerConfig, Plan
+
+
+class MirrorPolicy(Policy):
+    name = "mirror"
+
+    def __init__(self, config: MirrorPlannerConfig | None = None, drift_position: float = 0.10,
+                 drift_heading_deg: float = 3.0, retry_every: int = 5) -> None:  # fmt: skip
+        super().__init__()
+        self.config = config or MirrorPlannerConfig()
+        self.drift_position = drift_position
+        self.drift_heading = math.radians(drift_heading_deg)
+        self.retry_every = retry_every
+        self.planner: MirrorPlanner | None = None
+        self.plan: Plan | None = None
+        self.k = 0
+        self._wait = 0
+
+    def reset(self, geometry: ScenarioGeometry) -> None:
+        self.planner = MirrorPlanner(geometry, self.config)
+        self.params = geometry.vehicle
+        self.plan = None
+        self.k = 0
+        self._wait = 0
+        self.stats = []
+        self.plans: list[Plan] = []
+
+    def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
+        if self.planner is None:
+            raise RuntimeError("MirrorPolicy: call reset(geometry) first")
+        s: VehicleState = info["vehicle_state"]
+        if self.plan is None or self.k >= len(self.plan.commands) or self._drifted(s):
+            self._replan(s)
+        if self.plan is None:
+            return self._brake(s)
+        a, d = self.plan.commands[self.k]
+        self.k += 1
+        return to_action(self.params, float(a), float(d))
+
+    def _drifted(self, s: VehicleState) -> bool:
+        ref = self.plan.states[self.k]
+        return (math.hypot(s.x - ref[0], s.y - ref[1]) > self.drift_position
+                or abs(s.theta - ref[2]) > self.drift_heading)  # fmt: skip
+
+    def _replan(self, s: VehicleState) -> None:
+        if self._wait > 0:
+            self._wait -= 1
+            self.plan = None
+            return
+        plan = self.planner.plan(s)
+        if plan is None:
+            from .planner import last_failure
+
+            self.stats.append(last_failure())
+            self.plan = None
+            self._wait = self.retry_every
+            return
+        self.stats.append(plan.stats)
+        self.plans.append(plan)
+        self.plan = plan
+        self.k = 0
+
+    def _brake(self, s: VehicleState) -> np.ndarray:
+        a = -s.v / 0.3 if abs(s.v) > 1e-3 else -s.a
+        return to_action(self.params, max(self.params.a_min, min(self.params.a_max, a)), s.delta)
+
+    @property
+    def last_stats(self) -> PlanStats | None:
+        return self.stats[-1] if self.stats else None
