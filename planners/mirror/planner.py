@@ -50,6 +50,7 @@ class MirrorPlannerConfig:
     model_substeps: int = 2
     linearisation: Literal["scp", "paper"] = "scp"
     max_iterations: int = 6  # SCP + Algorithm I rounds per candidate
+    max_trust_scale: float = 64.0  # give up on a candidate when the trust penalty grows past this
     w_trust_position: float = 0.5  # SCP trust region, as a penalty per m^2 of planned x, y moved
     w_trust_heading: float = 2.0  # ... and per rad^2 of heading
     converge_position: float = 0.02  # [m] SCP stops when the rollout moves less
@@ -64,9 +65,11 @@ class MirrorPlannerConfig:
     w_accel_rate: float = 0.5
     w_steer_rate: float = 2.0
     obstacle_margin: float = 0.04  # [m] planned clearance to infeasible regions
-    w_slack: float = 5000.0  # exact penalty per m of obstacle-row violation (rows are soft)
+    w_slack: float = 1e5  # exact penalty per m of obstacle-row violation (rows are soft)
     mirror_margin: float = 1.1  # reverse / angle: l_mi >= margin * r_min (1 - cos psi)
-    node_limit: int = 12
+    node_limit: int = 3
+    seed_swings: tuple[float, ...] = (-0.8, -0.4, 0.4, 0.8)  # [rad] heading excursions tried as seeds
+    refine_candidates: int = 2  # candidates refined by SCP after the seed search
     time_limit_s: float = 0.5
 
 
@@ -155,12 +158,19 @@ class MirrorPlanner:
         """Best collision-free plan over ``candidates`` (default: ``self.candidates``)."""
         t0 = time.perf_counter()
         xi0 = state.as_array()
-        cands = candidates or self.candidates(state)
+        if not self.line.fixed:  # Eqs. (5), (6): bound by the heading change still to go
+            psi = min(abs(_unwrap_near(self.g.target[2], state.theta) - state.theta), math.pi / 2)
+            self.line = mirror_line(self.g, psi=psi, margin=self.cfg.mirror_margin)
+        seeds = self._seed_search(xi0, candidates or self.candidates(state))
         best: Plan | None = None
         totals = {"iterations": 0, "qp_solves": 0, "nodes": 0}
         tried = []
-        for cand in cands:
-            plan, st = self._solve_candidate(xi0, cand)
+        theta_t = _unwrap_near(self.g.target[2], state.theta)
+        stay = self._merit(np.repeat(xi0[None], 2 * self.N + 1, axis=0), theta_t)
+        for n, (cand, seed) in enumerate(seeds):
+            if n >= self.cfg.refine_candidates and best is not None and best.cost < 0.9 * stay:
+                break  # refine the best few; go on down the list while none is clear and progressing
+            plan, st = self._solve_candidate(xi0, cand, seed)
             for k in totals:
                 totals[k] += st[k]
             tried.append((cand, None if plan is None else round(plan.cost, 3), st["status"]))
@@ -176,7 +186,7 @@ class MirrorPlanner:
         """Parallel parking reverses to the mirror line first; reverse and angle drive forward."""
         return -1 if self.g.parking_type is ParkingType.PARALLEL else 1
 
-    def _seed(self, xi0: np.ndarray, cand: Candidate) -> np.ndarray:
+    def _seed(self, xi0: np.ndarray, cand: Candidate, swing: float | None = None) -> np.ndarray:
         """A real rollout of the manoeuvre's classic shape, to linearise about first.
 
         Speed: a sine over each segment, sized to the distance the segment has to cover.
@@ -212,6 +222,8 @@ class MirrorPlanner:
             v_ref = d * (vc1 if seg1 else vc2) * math.sin(math.pi * min(tau, 1.0))
             if cand.switch is None:
                 th_ref = tth
+            elif seg1 and swing is not None:  # multi-start: a heading excursion before the switch
+                th_ref = th0 + swing * math.sin(0.5 * math.pi * min(tau, 1.0))
             elif seg1:
                 if self.g.parking_type is ParkingType.PARALLEL and first:
                     th_ref = tth + 0.7 * math.sin(math.pi * tau) + psi * tau  # the S-curve's swing
@@ -230,18 +242,17 @@ class MirrorPlanner:
         return np.array(out)
 
     def candidates(self, state: VehicleState) -> list[Candidate]:
-        """Switch steps to try: the geometry's first direction, both when standing in the slot area."""
+        """(direction, switch step) pairs the seed search scores: both directions, two switch
+        steps, and no switch."""
         first = self.first_direction
         if abs(state.v) > 0.1:
             dirs = [1 if state.v > 0 else -1]
         else:
             dirs = [first, -first]
         s_est = self._switch_estimate(state)
-        out = []
-        for d in dirs:
-            for s in sorted({s_est, min(self.N - 12, int(1.4 * s_est))}):
-                out.append(Candidate(d, s))
-        out.append(Candidate(dirs[0], None))
+        steps = sorted({s_est, min(self.N - 15, max(12, int(1.6 * s_est)))})
+        out = [Candidate(d, s) for d in dirs for s in steps]
+        out += [Candidate(d, None) for d in dirs]  # no switch: straight on to the target
         return out
 
     def _switch_estimate(self, state: VehicleState) -> int:
@@ -251,41 +262,70 @@ class MirrorPlanner:
         return int(min(max(round(t / self.cfg.dt), 8), self.N - 20))
 
     # ------------------------------------------------------------- candidate
-    def _solve_candidate(self, xi0: np.ndarray, cand: Candidate):
+    def _seed_search(self, xi0: np.ndarray, cands: list[Candidate]):
+        """Multi-start: roll out each candidate's seed shapes, keep the best few by merit.
+
+        A rollout costs about a millisecond, a candidate's SCP tens: the cheap search
+        decides which direction, switch step and heading excursion the SCP refines.
+        """
+        theta_t = _unwrap_near(self.g.target[2], xi0[XI_TH])
+        scored = []
+        for cand in cands:
+            swings = [None] if cand.switch is None else [None, *self.cfg.seed_swings]
+            for sw in swings:
+                real = self._seed(xi0, cand, sw)
+                scored.append((self._merit(real, theta_t), cand, real))
+        scored.sort(key=lambda t: t[0])
+        out, seen = [], set()
+        for _, cand, real in scored:
+            if cand not in seen:  # the best seed of each candidate, best candidates first
+                seen.add(cand)
+                out.append((cand, real))
+        return out
+
+    def _solve_candidate(self, xi0: np.ndarray, cand: Candidate, seed: np.ndarray | None = None):
+        """SCP with Algorithm I inside, for one (direction, switch step) candidate.
+
+        Each round linearises about the reference rollout, adds the disjunctive obstacle
+        rows of every step the reference collides at (Algorithm I), and solves. The
+        rollout of the solution replaces the reference only if it lowers the merit (true
+        cost plus the exact penalty on penetration); otherwise the trust-region penalty
+        is raised and the round repeats. Without improvement possible, the search stops.
+        """
         cfg, N = self.cfg, self.N
         theta_t = _unwrap_near(self.g.target[2], xi0[XI_TH])
         P, c = self._cost(cand, theta_t)
-        P_trust = (P + self._trust_diag()).tocsc()
-        P_trust.sum_duplicates()
         theta_set: dict[tuple[int, int], None] = {}
-        ref_real = ref_u = None  # the last rollout (half steps) and its planned controls
         best: Plan | None = None
         st = {"iterations": 0, "qp_solves": 0, "nodes": 0, "status": "failed"}
-        angle = 0.5 * (xi0[XI_TH] + theta_t)
+        paper = cfg.linearisation == "paper"
+        if paper:
+            ref_real, ref_u = None, None
+            lin = self.model.paper_linearisation(N, 0.5 * (xi0[XI_TH] + theta_t), 1.0 * cand.direction)
+        else:
+            # Seed: a moving reference of the manoeuvre's shape. (The paper's form,
+            # Eqs. 22-27, moves the car at its nominal speed even where the real speed is
+            # zero; linearising about that standstill would freeze the heading.)
+            ref_real = seed if seed is not None else self._seed(xi0, cand)
+            ref_u = self._planned_controls(ref_real, cand)
+            ref_merit = self._merit(ref_real, theta_t)
+        trust_scale = 1.0
         for it in range(cfg.max_iterations):
             st["iterations"] += 1
-            if cfg.linearisation == "paper":
-                lin = self.model.paper_linearisation(N, angle, 1.0 * cand.direction)
-            elif it == 0:
-                # Seed: a moving reference of the manoeuvre's shape. (The paper's form,
-                # Eqs. 22-27, moves the car at its nominal speed even where the real speed
-                # is zero; linearising about that standstill would freeze the heading.)
-                ref_real = self._seed(xi0, cand)
-                ref_u = self._planned_controls(ref_real, cand)
+            if not paper:
+                for i, k in self._collisions(ref_real):  # Algorithm I
+                    theta_set[(i, k)] = None
                 lin_at = self._to_planned(ref_real, cand)
-                if cand.switch is not None:
-                    lin_at[cand.switch] = FLIP @ lin_at[cand.switch]
-                lin = self.model.jacobian_linearisation(lin_at, ref_u)
-            else:
-                ref_planned = self._to_planned(ref_real, cand)
-                lin_at = ref_planned.copy()
                 if cand.switch is not None:  # step s starts from the flipped lag states
                     lin_at[cand.switch] = FLIP @ lin_at[cand.switch]
                 lin = self.model.jacobian_linearisation(lin_at, ref_u)
-            trust = it > 0 and cfg.linearisation == "scp"
+                P_it = (P + trust_scale * self._trust_diag()).tocsc()
+                P_it.sum_duplicates()
+            else:
+                P_it = P
             qp, disj, active, preferred = self._build(
-                xi0, cand, theta_t, P_trust if trust else P, c, lin, ref_real, theta_set, trust,
-                mirror=cand.direction == self.first_direction,
+                xi0, cand, theta_t, P_it, c, lin, ref_real, theta_set, not paper,
+                mirror=cand.direction == self.first_direction, trust_scale=trust_scale,
             )
             if disj:
                 res = self.miqp.solve(qp, disj, active, preferred)
@@ -305,17 +345,39 @@ class MirrorPlanner:
             plan = self._make_plan(cand, u_planned, real, theta_t, not hits)
             if not hits and (best is None or plan.cost < best.cost):
                 best = plan
-            if hits:  # Algorithm I: constrain the colliding steps
+            if paper:  # the paper's scheme: one model, Algorithm I until clear
+                if not hits:
+                    break
                 for i, k in hits:
                     theta_set[(i, k)] = None
-            elif ref_real is not None and cfg.linearisation == "scp" and _converged(real, ref_real, cfg):
-                break
-            elif cfg.linearisation == "paper":
-                break
-            ref_real, ref_u = real, u_planned
+                ref_real, ref_u = real, u_planned
+                continue
+            merit = self._merit(real, theta_t)
+            if merit < ref_merit - 1e-6:
+                converged = _converged(real, ref_real, cfg)
+                ref_real, ref_u, ref_merit = real, u_planned, merit
+                trust_scale = max(trust_scale / 2.0, 0.25)
+                if converged and not hits:
+                    break
+            else:
+                trust_scale *= 4.0
+                if trust_scale > cfg.max_trust_scale:
+                    break
         if best is not None:
             st["status"] = "ok"
         return best, st
+
+    def _merit(self, real_half: np.ndarray, theta_t: float) -> float:
+        """True cost of a rollout plus the exact penalty on its footprint's penetration."""
+        real = real_half[:: self.cfg.model_substeps]
+        tx, ty, _ = self.g.target
+        cfg = self.cfg
+        pos_err = float(np.hypot(real[-1, 0] - tx, real[-1, 1] - ty))
+        th_err = float(abs(real[-1, 2] - theta_t))
+        run = (np.hypot(real[1:, 0] - tx, real[1:, 1] - ty) ** 2).sum() * cfg.w_position * cfg.dt
+        pen = self.g.checker.penetration(real_half[:, 0], real_half[:, 1], real_half[:, 2]).max(axis=1)
+        return (cfg.w_terminal_position * pos_err**2 + cfg.w_terminal_heading * th_err**2 + run
+                + cfg.w_slack * float(np.clip(pen + cfg.obstacle_margin, 0, None).sum()))  # fmt: skip
 
     # ------------------------------------------------------------------ cost
     def _cost(self, cand: Candidate, theta_t: float):
@@ -361,7 +423,8 @@ class MirrorPlanner:
         return sp.diags(d, format="csc")
 
     # ----------------------------------------------------------------- build
-    def _build(self, xi0, cand, theta_t, P, c, lin, ref_real, theta_set, trust: bool, mirror: bool = True):
+    def _build(self, xi0, cand, theta_t, P, c, lin, ref_real, theta_set, trust: bool, mirror: bool = True,
+               trust_scale: float = 1.0):  # fmt: skip
         cfg, N, p = self.cfg, self.N, self.p
         A_, B_, c_ = lin
         s = cand.switch
@@ -399,7 +462,7 @@ class MirrorPlanner:
             c = c.copy()
             for j, w in ((XI_X, cfg.w_trust_position), (XI_Y, cfg.w_trust_position), (XI_TH, cfg.w_trust_heading)):
                 idx = NX * np.arange(1, N + 1) + j
-                c[idx] -= 2.0 * w * pl[1:, j]
+                c[idx] -= 2.0 * trust_scale * w * pl[1:, j]
         # Inequalities: the mirror line, then obstacle alternatives.
         g_rows, g_cols, g_vals, h_l, h_u, active = [], [], [], [], [], []
         ln = self.line

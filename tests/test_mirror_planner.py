@@ -1,0 +1,194 @@
+"""The mirrored-target planner: mirror line, Theorem 2 transformation, QP, B&B, closed loop."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import mirrorpark_env  # noqa: F401
+from mirrorpark_env import Scenario, VehicleParams, VehicleState
+from planners.base import run_episode
+from planners.mirror.mirror_line import (
+    mirror_line,
+    mirrored_target,
+    parallel_dark_point,
+    parallel_upper_bound,
+    reach_lower_bound,
+)
+from planners.mirror.planner import FLIP, Candidate, MirrorPlanner
+from planners.mirror.policy import MirrorPolicy
+from planners.mirror.solvers import QP, BranchAndBound, Disjunction, Enumeration, INACTIVE, PiqpQP
+
+P = VehicleParams()
+R_MIN = 2.5 / math.tan(0.6)  # 3.6542 m
+
+
+# ------------------------------------------------------------------ mirror line
+def test_mirror_line_bounds_by_hand():
+    assert R_MIN == pytest.approx(3.6542, abs=1e-4)
+    assert reach_lower_bound(P, 0.0) == 0.0
+    assert reach_lower_bound(P, math.pi / 2) == pytest.approx(R_MIN)  # Eq. (5), heading 0
+    assert reach_lower_bound(P, math.pi / 4) == pytest.approx(R_MIN * (1 - math.sqrt(0.5)))  # Eq. (6): 1.0703
+    # Eq. (2) at psi = 0: SW/2 - l3/2 = 1.25 - 0.835
+    assert parallel_upper_bound(P, 2.5, 0.0) == pytest.approx(0.415)
+    # at psi = 0.3: 1.25 - 0.71 sin 0.3 - 0.835 cos 0.3
+    assert parallel_upper_bound(P, 2.5, 0.3) == pytest.approx(1.25 - 0.71 * math.sin(0.3) - 0.835 * math.cos(0.3))
+    psi, l = parallel_dark_point(P, 2.5)
+    assert parallel_upper_bound(P, 2.5, psi) == pytest.approx(reach_lower_bound(P, psi), abs=1e-9)
+    assert (psi, l) == pytest.approx((0.3504, 0.2220), abs=1e-3)
+    assert parallel_dark_point(P, 1.6) == (0.0, 0.0)  # narrower than the car: no band
+
+
+def test_mirror_line_sides_and_mirrored_target():
+    par = mirror_line(Scenario.from_degrees("parallel", 4.0, 6.0, 2.5, 0, 2.0).build())
+    assert par.fixed and par.normal == pytest.approx((0.0, -1.0))  # deeper in the slot
+    rev = mirror_line(Scenario.from_degrees("reverse", 6.0, 4.82, 2.3, 0, 2.5).build(), margin=1.0)
+    assert not rev.fixed and rev.normal == pytest.approx((1.0, 0.0)) and rev.distance == pytest.approx(R_MIN)
+    assert mirrored_target((1.0, -2.0, 0.3), (4.0, 1.0)) == (7.0, 4.0, 0.3)
+
+
+# ------------------------------------------------------------ Theorem 2 in plans
+def test_negated_commands_follow_the_point_reflection_with_lags():
+    """Eq. (42): from the switch on, the real car is the planned one reflected through S."""
+    g = Scenario.from_degrees("reverse", 6.0, 4.82, 2.3, 0, 2.5).build()
+    pl = MirrorPlanner(g)
+    rng = np.random.default_rng(1)
+    s = 20
+    u = np.stack([1.5 * np.sin(np.arange(60) / 5), rng.uniform(-0.6, 0.6, 60)], axis=1)
+    u[:s, 0] = np.abs(u[:s, 0])
+    xi0 = np.array([2.3, 2.5, 0.2, 0.0, 0.0, 0.0])
+    real = pl._rollout(xi0, u, Candidate(1, s))[:: pl.cfg.model_substeps]
+    planned = [xi0]
+    x = xi0
+    for i in range(60):
+        x = pl.model.step((FLIP @ x) if i == s else x, u[i])  # lag states flip at the switch
+        planned.append(x)
+    planned = np.array(planned)
+    S = real[s, :2]
+    np.testing.assert_allclose(real[: s + 1], planned[: s + 1], atol=1e-9)
+    np.testing.assert_allclose(real[s + 1 :, :2], 2 * S - planned[s + 1 :, :2], atol=1e-9)
+    np.testing.assert_allclose(real[s + 1 :, 2], planned[s + 1 :, 2], atol=1e-9)
+    np.testing.assert_allclose(real[s + 1 :, 3:], -planned[s + 1 :, 3:], atol=1e-9)
+
+
+def test_executed_plan_ends_where_predicted():
+    """Plan, transform, simulate in the environment (no replanning): the car follows the plan."""
+    env = gym.make("MirrorPark-v0").unwrapped
+    _, info = env.reset(options={"scenario": "reverse_rw6.00_sl4.82_sw2.30_th+0_y2.50"})
+    plan = MirrorPlanner(info["geometry"]).plan(info["vehicle_state"])
+    assert plan is not None and plan.collision_free
+    for a, d in plan.commands:
+        *_, term, trunc, info = env.step(mirrorpark_env.to_action(P, float(a), float(d)))
+        if term or trunc:
+            break
+    s = info["vehicle_state"]
+    end = plan.states[env.steps]
+    assert math.hypot(s.x - end[0], s.y - end[1]) < 0.03 and abs(s.theta - end[2]) < 0.01
+    assert not info["collision"]
+
+
+# -------------------------------------------------------------------------- QP
+def test_qp_solution_satisfies_dynamics_and_bounds():
+    g = Scenario.from_degrees("parallel", 4.5, 6.0, 2.5, 0, 2.0).build()
+    pl = MirrorPlanner(g)
+    xi0 = g.start.as_array()
+    cand = Candidate(-1, 30)
+    Pm, c = pl._cost(cand, 0.0)
+    ref = pl._seed(xi0, cand)
+    lin_at = pl._to_planned(ref, cand)
+    lin_at[30] = FLIP @ lin_at[30]
+    lin = pl.model.jacobian_linearisation(lin_at, pl._planned_controls(ref, cand))
+    qp, _, _, _ = pl._build(xi0, cand, 0.0, Pm, c, lin, ref, {}, False)
+    res = PiqpQP().solve(qp)
+    assert res.status == "solved"
+    z = res.x
+    assert np.abs(qp.A @ z - qp.b).max() < 1e-5  # dynamics, initial state, switch link
+    assert (z >= qp.x_l - 1e-6).all() and (z <= qp.x_u + 1e-6).all()
+    X = z[: pl.n_states].reshape(-1, 6)
+    U = z[pl.iu0 : pl.iS].reshape(-1, 2)
+    assert (X[1:, 3] <= 1e-6).all()  # monodirectional: reversing throughout (planned frame)
+    assert abs(X[30, 3]) < 1e-6 and abs(X[-1, 3]) < 1e-6  # stands at the switch and at N
+    assert np.abs(U[:, 1]).max() <= 0.6 + 1e-6 and np.abs(X[:, 5]).max() <= 0.6 + 1e-6
+    assert U[:30, 0].min() >= -5 - 1e-6 and U[:30, 0].max() <= 3 + 1e-6
+    assert U[30:, 0].min() >= -3 - 1e-6 and U[30:, 0].max() <= 5 + 1e-6  # negated later: -a in [-5, 3]
+    np.testing.assert_allclose(z[pl.iS : pl.iS + 2], X[30, :2], atol=1e-6)  # S is the switch point
+
+
+# ------------------------------------------------------------ branch-and-bound
+def _boxes_problem():
+    """min |z - (0.2, 0.1)|^2 with z outside three unit boxes: 3 disjunctions of 4 faces."""
+    boxes = [(-0.5, 0.5, -0.5, 0.5), (0.8, 1.8, -1.0, 0.3), (-1.5, -0.3, 0.4, 1.6)]
+    rows, bounds = [], []
+    disj = []
+    for x0, x1, y0, y1 in boxes:  # outside: x >= x1 | -x >= -x0 | y >= y1 | -y >= -y0
+        idx = []
+        for coef, b in (((1, 0), x1), ((-1, 0), -x0), ((0, 1), y1), ((0, -1), -y0)):
+            idx.append(len(rows))
+            rows.append(coef)
+            bounds.append(b)
+        disj.append(Disjunction(tuple(idx)))
+    G = sp.csc_matrix(np.array(rows, float))
+    qp = QP(sp.csc_matrix(2 * np.eye(2)), -2 * np.array([0.2, 0.1]), sp.csc_matrix((0, 2)), np.zeros(0), G,
+            np.full(len(rows), INACTIVE), np.full(len(rows), np.inf), np.full(2, -5.0), np.full(2, 5.0))  # fmt: skip
+    return qp, disj, np.array(bounds, float)
+
+
+def test_branch_and_bound_matches_exhaustive_enumeration():
+    qp, disj, bounds = _boxes_problem()
+    bb = BranchAndBound(PiqpQP(), node_limit=10_000, time_limit_s=30).solve(qp, disj, bounds)
+    en = Enumeration(PiqpQP()).solve(qp, disj, bounds)
+    assert bb.status == "solved" and en.status == "solved"
+    assert bb.obj == pytest.approx(en.obj, abs=1e-5)
+    np.testing.assert_allclose(bb.x, en.x, atol=1e-3)
+    assert bb.qp_solves < en.qp_solves  # 64 assignments enumerated; B&B prunes
+    # From (0.2, 0.1) the nearest face of box 0 is x = 0.5 (0.3 away; y = 0.5 is 0.4 away).
+    np.testing.assert_allclose(en.x, [0.5, 0.1], atol=1e-3)
+
+
+def test_piqp_backend_refills_one_pattern():
+    qp, disj, bounds = _boxes_problem()
+    backend = PiqpQP()
+    base = qp.h_l.copy()
+    for j in range(4):  # activate each face of box 0 in turn: same pattern, new bounds
+        h_l = base.copy()
+        h_l[disj[0].rows[j]] = bounds[disj[0].rows[j]]
+        qp.h_l = h_l
+        assert backend.solve(qp).status == "solved"
+    assert backend.setups == 1 and backend.updates == 3
+
+
+# ---------------------------------------------------------------- closed loop
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "case_id",
+    [
+        "parallel_rw4.00_sl7.32_sw2.50_th+10_y1.30",
+        "reverse_rw7.00_sl4.82_sw2.32_th+40_y3.00",
+        "angle_rw3.50_sl4.82_sw2.77_th+10_y1.30",
+        "parallel_rw4.50_sl6.00_sw2.50_th+0_y2.00",  # needs switches
+    ],
+)
+def test_easy_cases_park(case_id):
+    env = gym.make("MirrorPark-v0").unwrapped
+    policy = MirrorPolicy()
+    info, _ = run_episode(env, policy, case_id)
+    assert info["is_success"], (info["failed_criterion"], info["vehicle_state"])
+    assert all(s.status in ("ok", "infeasible") for s in policy.stats)
+
+
+def test_planner_failure_is_a_status_not_an_exception():
+    """A start pinned against an obstacle: the policy brakes and reports, never raises."""
+    env = gym.make("MirrorPark-v0").unwrapped
+    policy = MirrorPolicy()
+    _, info = env.reset(options={"scenario": "reverse_rw6.00_sl4.82_sw1.67_th+30_y1.40"})
+    policy.reset(info["geometry"])
+    obs = None
+    for _ in range(40):
+        obs, _, term, trunc, info = env.step(policy.act(obs, info))
+        if term or trunc:
+            break
+    assert policy.stats and all(isinstance(s.wall_time_s, float) for s in policy.stats)
