@@ -9,7 +9,7 @@ from pathlib import Path
 
 
 def cmd_grid(args: argparse.Namespace) -> int:
-    from mirrorpark_env.config import default_grid, load, GridConfig
+    from mirrorpark_env.config import GridConfig, default_grid, load
     from mirrorpark_env.grid import Grid
 
     cfg = load(GridConfig, args.config) if args.config else default_grid()
@@ -30,6 +30,82 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cases(args: argparse.Namespace):
+    from .cases import from_sample, load_case_file
+
+    if args.cases:
+        return load_case_file(args.cases)
+    return from_sample(args.sample, types=args.types)
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from .metrics import summary
+    from .runner import evaluate
+    from .store import read_results
+
+    scenarios = _cases(args)
+    out = Path(args.out)
+    store = evaluate(args.planner, scenarios, out, workers=args.workers, backend=args.backend,
+                     ray_address=args.address, progress=not args.quiet)  # fmt: skip
+    df = read_results([out])
+    ids = {sc.case_id for sc in scenarios}
+    df = df[df["case_id"].isin(ids) & (df["planner"] == args.planner)]
+    s = summary(df, args.planner)
+    if args.json:
+        print(json.dumps(s))
+    else:
+        r = s["success_rate"]
+        pct = lambda v: "n/a" if v is None else f"{100 * v:.1f} %"  # noqa: E731
+        print(f"{args.planner}: {s['cases']} cases, success {pct(r['all'])} (parallel {pct(r['parallel'])}, "
+              f"reverse {pct(r['reverse'])}, angle {pct(r['angle'])}); results in {store.parquet}")  # fmt: skip
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from .report import write_report
+    from .store import read_results
+
+    path = write_report(read_results(args.results), args.out, baseline=args.baseline)
+    print(f"wrote {path}")
+    return 0
+
+
+def cmd_main(args: argparse.Namespace) -> int:
+    """The main job: a smoke evaluation of every available planner, then the report."""
+    from .registry import available
+    from .report import write_report
+    from .runner import evaluate
+    from .store import read_results
+
+    scenarios = _cases(args)
+    out = Path(args.out)
+    for p in available() if args.planners is None else args.planners:
+        evaluate(p, scenarios, out / p, workers=args.workers, progress=not args.quiet)
+    df = read_results([out / p for p in (available() if args.planners is None else args.planners)])
+    path = write_report(df, out / "report")
+    print(f"wrote {path}")
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from .bench import run
+    from .cases import from_sample
+    from .registry import available
+
+    cases = [sc.case_id for sc in from_sample("smoke")][:: max(1, 90 // args.cases)][: args.cases]
+    res = run(args.planners or available(), cases, env_steps=args.env_steps)
+    if args.json:
+        print(json.dumps(res))
+    else:
+        print(f"env: {res['env_steps_per_s']['median']:.0f} steps/s (median)")
+        for p, r in res["planners"].items():
+            print(f"{p}: plan ms median {r['plan_ms_median']}, p95 {r['plan_ms_p95']} over {r['calls']} calls, "
+                  f"{r['successes']}/{r['cases']} parked")  # fmt: skip
+        for k, v in res["ratios"].items():
+            print(f"{k}: {v:.2f}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="mirrorpark", description="MirrorPark: parking planners scored side by side.")
     sub = ap.add_subparsers(dest="command", required=True)
@@ -41,11 +117,50 @@ def build_parser() -> argparse.ArgumentParser:
     d = sub.add_parser("demo", help="render one scene per parking type and a scripted episode to PNG")
     d.add_argument("--out", default="out/demo", help="output folder (default: out/demo)")
     d.set_defaults(func=cmd_demo)
+
+    def case_args(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--sample", default="smoke", choices=["smoke", "standard", "full"],
+                       help="grid sample: smoke (30 per type), standard (500 per type), full (70,434)")  # fmt: skip
+        p.add_argument("--cases", help="a JSON or CSV file of cases (fields: parking_type, road_width, "
+                       "slot_length, slot_width, theta0_deg, y0); overrides --sample")  # fmt: skip
+        p.add_argument("--types", nargs="+", choices=["parallel", "reverse", "angle"], help="only these parking types")
+        p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+        p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    e = sub.add_parser("evaluate", help="run a planner over grid cases; resumable")
+    e.add_argument("--planner", required=True, help="mirror, mirror-paper (later: hybrid-astar, rl:PATH)")
+    case_args(e)
+    e.add_argument("--backend", default="local", choices=["local", "ray"])
+    e.add_argument("--address", default=None, help="Ray cluster address (default: start a local Ray)")
+    e.add_argument("--out", default=None, help="results folder (default: results/<planner>-<sample>)")
+    e.add_argument("--json", action="store_true", help="end with one JSON summary line")
+    e.set_defaults(func=cmd_evaluate)
+
+    r = sub.add_parser("report", help="write a Markdown report with figures from result folders or files")
+    r.add_argument("results", nargs="+", help="results folders, .parquet or .jsonl files")
+    r.add_argument("--out", required=True)
+    r.add_argument("--baseline", default=None, help="planner to compare against (default: hybrid-astar if present)")
+    r.set_defaults(func=cmd_report)
+
+    m = sub.add_parser("main", help="the main job: smoke-evaluate every available planner and write the report")
+    case_args(m)
+    m.add_argument("--planners", nargs="+", default=None)
+    m.add_argument("--out", default="results/main")
+    m.set_defaults(func=cmd_main)
+
+    b = sub.add_parser("bench", help="benchmark env stepping and every planner's planning time in one run")
+    b.add_argument("--planners", nargs="+", default=None)
+    b.add_argument("--cases", type=int, default=9, help="smoke cases to plan on (default 9)")
+    b.add_argument("--env-steps", type=int, default=5000)
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench)
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if getattr(args, "func", None) is cmd_evaluate and args.out is None:
+        args.out = f"results/{args.planner.replace(':', '_').replace('/', '_')}-{'cases' if args.cases else args.sample}"
     try:
         return args.func(args)
     except ValueError as err:  # bad input: one clear line, no traceback

@@ -36,6 +36,7 @@ class Policy(ABC):
 
     def __init__(self) -> None:
         self.stats: list[PlanStats] = []
+        self.gave_up = False  # True once the policy has stopped trying (it only brakes now)
 
     @abstractmethod
     def reset(self, geometry: ScenarioGeometry) -> None:
@@ -60,6 +61,6 @@ def run_episode(env, policy: Policy, scenario=None, seed: int | None = None, max
     while steps < max_steps:
         obs, _, terminated, truncated, info = env.step(policy.act(obs, info))
         steps += 1
-        if terminated or truncated:
+        if terminated or truncated or (policy.gave_up and info["stopped"]):
             break
     return info, steps

@@ -178,7 +178,8 @@ class MirrorPlanner:
                 best = plan
         status = "ok" if best is not None else "infeasible"
         stats = PlanStats(time.perf_counter() - t0, status, totals["iterations"], totals["qp_solves"],
-                          totals["nodes"], best.cost if best else math.nan, {"candidates": tried})  # fmt: skip
+                          totals["nodes"], best.cost if best else math.nan,
+                          {"candidates": tried, "stay_cost": stay})  # fmt: skip
         return replace(best, stats=stats) if best is not None else _failed(stats)
 
     @property

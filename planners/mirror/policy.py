@@ -25,12 +25,16 @@ class MirrorPolicy(Policy):
     name = "mirror"
 
     def __init__(self, config: MirrorPlannerConfig | None = None, drift_position: float = 0.10,
-                 drift_heading_deg: float = 3.0, retry_every: int = 5) -> None:  # fmt: skip
+                 drift_heading_deg: float = 3.0, retry_every: int = 5, max_failures: int = 8,
+                 max_plans: int = 40, patience: int = 6) -> None:  # fmt: skip
         super().__init__()
         self.config = config or MirrorPlannerConfig()
         self.drift_position = drift_position
         self.drift_heading = math.radians(drift_heading_deg)
         self.retry_every = retry_every
+        self.max_failures = max_failures  # consecutive failed solves before giving up
+        self.max_plans = max_plans  # plans per episode before giving up
+        self.patience = patience  # plans without lowering the cost of standing still
         self.planner: MirrorPlanner | None = None
         self.plan: Plan | None = None
         self.k = 0
@@ -44,12 +48,16 @@ class MirrorPolicy(Policy):
         self._wait = 0
         self.stats = []
         self.plans: list[Plan] = []
+        self.gave_up = False
+        self._failures = 0
+        self._best_stay = math.inf
+        self._since_best = 0
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         if self.planner is None:
             raise RuntimeError("MirrorPolicy: call reset(geometry) first")
         s: VehicleState = info["vehicle_state"]
-        if self.plan is None or self.k >= len(self.plan.commands) or self._drifted(s):
+        if not self.gave_up and (self.plan is None or self.k >= len(self.plan.commands) or self._drifted(s)):
             self._replan(s)
         if self.plan is None:
             return self._brake(s)
@@ -74,8 +82,20 @@ class MirrorPolicy(Policy):
             self.stats.append(last_failure())
             self.plan = None
             self._wait = self.retry_every
+            self._failures += 1
+            self.gave_up = self._failures >= self.max_failures
             return
+        self._failures = 0
         self.stats.append(plan.stats)
+        stay = plan.stats.detail.get("stay_cost", math.inf)
+        if stay < 0.99 * self._best_stay:
+            self._best_stay, self._since_best = stay, 0
+        else:
+            self._since_best += 1
+        if len(self.stats) >= self.max_plans or self._since_best >= self.patience:
+            self.gave_up = True  # no progress: stop safely rather than shuffle for 180 s
+            self.plan = None
+            return
         self.plans.append(plan)
         self.plan = plan
         self.k = 0
@@ -85,5 +105,5 @@ class MirrorPolicy(Policy):
         return to_action(self.params, max(self.params.a_min, min(self.params.a_max, a)), s.delta)
 
     @property
-    def last_stats(self) -> PlanStats | None:
-        return self.stats[-1] if self.stats else None
+    def status(self) -> str:
+        return "gave_up" if self.gave_up else super().status

@@ -1,0 +1,73 @@
+"""Benchmarks: environment steps per second and planning time per call, all in one run.
+
+Speed targets are measured here, never in timed tests. Figures are medians over
+repeats (steps/s) or over every planning call (ms); ratios compare planners on the same
+cases in the same process.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+
+
+def env_steps_per_second(steps: int = 5000, repeats: int = 5) -> dict:
+    """MirrorPark-v0 stepping without rendering, seeded random actions, resets included."""
+    import gymnasium as gym
+
+    import mirrorpark_env  # noqa: F401
+
+    env = gym.make("MirrorPark-v0").unwrapped  # the raw env: no checker wrappers
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, size=(steps, 2)).astype(np.float32)
+    actions[:, 0] *= 0.3  # moderate speeds so that episodes last
+    rates = []
+    for r in range(repeats):
+        env.reset(seed=r)
+        t0 = time.perf_counter()
+        for a in actions:
+            _, _, term, trunc, _ = env.step(a)
+            if term or trunc:
+                env.reset()
+        rates.append(steps / (time.perf_counter() - t0))
+    return {"median": statistics.median(rates), "all": rates, "steps": steps}
+
+
+def planning_times(planners: list[str], case_ids: list[str]) -> dict:
+    """Every planning call of each planner over the same closed-loop episodes."""
+    from .runner import run_case
+
+    out = {}
+    for p in planners:
+        times, wall, ok = [], [], 0
+        for cid in case_ids:
+            row = run_case(p, cid)
+            times += row.get("plan_times_ms") or []
+            wall.append(row["episode_wall_s"])
+            ok += bool(row.get("success"))
+        t = np.asarray(times, float)
+        out[p] = {
+            "cases": len(case_ids),
+            "successes": ok,
+            "calls": int(len(t)),
+            "plan_ms_median": float(np.median(t)) if len(t) else None,
+            "plan_ms_p95": float(np.percentile(t, 95)) if len(t) else None,
+            "plan_ms_mean": float(t.mean()) if len(t) else None,
+            "episode_wall_s_median": float(np.median(wall)) if wall else None,
+        }
+    return out
+
+
+def run(planners: list[str], case_ids: list[str], env_steps: int = 5000) -> dict:
+    res = {"env_steps_per_s": env_steps_per_second(env_steps), "planners": planning_times(planners, case_ids)}
+    ratios = {}
+    names = [p for p in planners if res["planners"][p]["plan_ms_median"]]
+    for a in names:
+        for b in names:
+            if a < b:
+                ratios[f"{a}/{b} plan_ms_median"] = res["planners"][a]["plan_ms_median"] / res["planners"][b]["plan_ms_median"]
+    res["ratios"] = ratios
+    res["case_ids"] = case_ids
+    return res

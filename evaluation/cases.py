@@ -1,0 +1,67 @@
+"""Which cases to run: a named grid sample or a user's case file (JSON or CSV)."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+from mirrorpark_env.grid import default_grid_cases
+from mirrorpark_env.scenario import Scenario
+
+CASE_FIELDS = ("parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "y0")
+
+
+def from_sample(name: str, types: list[str] | None = None, seed: int | None = None) -> list[Scenario]:
+    """``smoke`` (30 per type), ``standard`` (500 per type) or ``full`` (70,434 cases)."""
+    grid = default_grid_cases()
+    idx = grid.sample_indices(name, seed=seed, types=tuple(types) if types else None)
+    if types and name == "full":
+        idx = [i for i in idx if grid.scenario(int(i)).parking_type.value in types]
+    return [grid.scenario(int(i)) for i in idx]
+
+
+def load_case_file(path: str | Path) -> list[Scenario]:
+    """Cases from a JSON list of objects or a CSV with a header row, fields ``CASE_FIELDS``.
+
+    Raises ``ValueError`` naming the file, the case (1-based) and the field on any problem.
+    """
+    p = Path(path)
+    if p.suffix.lower() not in (".json", ".csv"):
+        raise ValueError(f"{p}: case file must end in .json or .csv")
+    try:
+        text = p.read_text()
+    except OSError as err:
+        raise ValueError(f"{p}: cannot read case file ({err.strerror})") from None
+    if p.suffix.lower() == ".json":
+        try:
+            rows = json.loads(text)
+        except json.JSONDecodeError as err:
+            raise ValueError(f"{p}: not valid JSON: {err}") from None
+        if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
+            raise ValueError(f"{p}: expected a JSON list of objects with fields {', '.join(CASE_FIELDS)}")
+    else:
+        rows = list(csv.DictReader(text.splitlines()))
+        if rows and set(CASE_FIELDS) - set(rows[0]):
+            missing = sorted(set(CASE_FIELDS) - set(rows[0]))
+            raise ValueError(f"{p}: CSV header lacks {', '.join(missing)}; needs {', '.join(CASE_FIELDS)}")
+    if not rows:
+        raise ValueError(f"{p}: no cases")
+    out = []
+    for n, row in enumerate(rows, 1):
+        missing = [f for f in CASE_FIELDS if f not in row or row[f] in ("", None)]
+        if missing:
+            raise ValueError(f"{p}: case {n}: missing field(s) {', '.join(missing)}")
+        extra = sorted(set(row) - set(CASE_FIELDS) - {"start_x_offset"})
+        if extra:
+            raise ValueError(f"{p}: case {n}: unknown field(s) {', '.join(extra)}; allowed: {', '.join(CASE_FIELDS)}")
+        try:
+            sc = Scenario.from_degrees(
+                row["parking_type"], row["road_width"], row["slot_length"], row["slot_width"],
+                row["theta0_deg"], row["y0"], row.get("start_x_offset", 0.0) or 0.0,
+            )  # fmt: skip
+            sc.build()  # impossible geometry is rejected here, with the field named
+        except ValueError as err:
+            raise ValueError(f"{p}: case {n}: {err}") from None
+        out.append(sc)
+    return out

@@ -1,0 +1,123 @@
+"""Scores from a results table (DESIGN.md section 6).
+
+- success rate per parking type and over all cases (error rows count as failures);
+- completion: mean direction switches and parking time over successful episodes;
+- computation: every planning call pooled, median and p95; episode wall time;
+- ODD: a cell of initial conditions (type, road width, slot size, theta0, y0) is in the
+  ODD when the planner succeeds there (in >= 95 % of its runs where a cell holds
+  several); its size is the count of such cells.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+TYPES = ("parallel", "reverse", "angle")
+CELL = ("parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "y0")
+
+# The paper's headline figures (abstract and section III.B).
+PAPER = {
+    "success_gain_pct": 40.6,
+    "odd_gain_pct": 86.1,
+    "switch_change_pct": -47.6,
+    "parking_time_change_pct": -18.0,
+    "mean_switches": 3.3,
+    "mean_parking_time_s": 28.2,
+    "mean_plan_time_ms": 74.0,
+}
+
+
+def _rate(s: pd.Series) -> float | None:
+    return float(s.mean()) if len(s) else None
+
+
+def _plan_times(df: pd.DataFrame) -> np.ndarray:
+    if "plan_times_ms" not in df:
+        return np.empty(0)
+    vals = [t for ts in df["plan_times_ms"].dropna() for t in (ts if ts is not None else [])]
+    return np.asarray(vals, float)
+
+
+def summary(df: pd.DataFrame, planner: str | None = None) -> dict[str, Any]:
+    """The evaluation's JSON summary for one planner (types absent from the run are None)."""
+    if planner is not None:
+        df = df[df["planner"] == planner]
+    planners = sorted(df["planner"].unique()) if len(df) else []
+    success = df["success"].fillna(False).astype(bool) if len(df) else pd.Series(dtype=bool)
+    rates = {t: _rate(success[df["parking_type"] == t]) for t in TYPES} if len(df) else dict.fromkeys(TYPES)
+    rates["all"] = _rate(success)
+    ok = df[success] if len(df) else df
+    times = _plan_times(df)
+    wall = df["episode_wall_s"].dropna() if "episode_wall_s" in df else pd.Series(dtype=float)
+    return {
+        "planner": planner if planner is not None else (planners[0] if len(planners) == 1 else planners),
+        "cases": int(len(df)),
+        "success_rate": rates,
+        "mean_switches": float(ok["switches"].mean()) if len(ok) else None,
+        "mean_parking_time_s": float(ok["parking_time_s"].mean()) if len(ok) else None,
+        "plan_time_ms": {
+            "median": float(np.median(times)) if len(times) else None,
+            "p95": float(np.percentile(times, 95)) if len(times) else None,
+            "mean": float(times.mean()) if len(times) else None,
+        },
+        "episode_wall_s": {"median": float(wall.median()) if len(wall) else None},
+        "errors": int((df.get("planner_status") == "error").sum()) if len(df) else 0,
+    }
+
+
+def odd_cells(df: pd.DataFrame, threshold: float = 0.95) -> pd.DataFrame:
+    """Per planner and cell: runs, success fraction, and whether the cell is in the ODD."""
+    g = df.assign(success=df["success"].fillna(False).astype(float)).groupby(["planner", *CELL])
+    cells = g["success"].agg(runs="size", rate="mean").reset_index()
+    cells["in_odd"] = cells["rate"] >= threshold - 1e-12
+    return cells
+
+
+def odd_size(df: pd.DataFrame) -> dict[str, dict[str, int]]:
+    """ODD size per planner: cells in the ODD, per parking type and in all."""
+    cells = odd_cells(df)
+    out = {}
+    for planner, c in cells.groupby("planner"):
+        sizes = {t: int(c.loc[c["parking_type"] == t, "in_odd"].sum()) for t in TYPES}
+        sizes["all"] = int(c["in_odd"].sum())
+        out[planner] = sizes
+    return out
+
+
+def change_pct(ours: float | None, baseline: float | None) -> float | None:
+    if ours is None or baseline is None or baseline == 0 or math.isnan(baseline):
+        return None
+    return 100.0 * (ours - baseline) / baseline
+
+
+def headline(df: pd.DataFrame, planner: str, baseline: str | None) -> list[dict[str, Any]]:
+    """The paper's headline comparisons beside ours (relative changes against ``baseline``).
+
+    Comparisons use the cases both planners ran, so the figures are paired.
+    """
+    s = summary(df, planner)
+    rows = []
+    if baseline is not None:
+        common = set(df.loc[df["planner"] == planner, "case_id"]) & set(df.loc[df["planner"] == baseline, "case_id"])
+        d = df[df["case_id"].isin(common)]
+        a, b = summary(d, planner), summary(d, baseline)
+        odd = odd_size(d)
+        rows += [
+            ("success rate", "success_gain_pct", change_pct(a["success_rate"]["all"], b["success_rate"]["all"])),
+            ("ODD size", "odd_gain_pct", change_pct(odd.get(planner, {}).get("all"), odd.get(baseline, {}).get("all"))),
+            ("direction switches", "switch_change_pct", change_pct(a["mean_switches"], b["mean_switches"])),
+            ("parking time", "parking_time_change_pct", change_pct(a["mean_parking_time_s"], b["mean_parking_time_s"])),
+        ]
+    else:
+        rows += [(name, key, None) for name, key in (("success rate", "success_gain_pct"), ("ODD size", "odd_gain_pct"),
+                 ("direction switches", "switch_change_pct"), ("parking time", "parking_time_change_pct"))]  # fmt: skip
+    rows += [
+        ("mean switches (successes)", "mean_switches", s["mean_switches"]),
+        ("mean parking time [s] (successes)", "mean_parking_time_s", s["mean_parking_time_s"]),
+        ("mean planning time [ms]", "mean_plan_time_ms", s["plan_time_ms"]["mean"]),
+    ]
+    return [{"measure": name, "paper": PAPER[key], "ours": val, "relative": key.endswith("pct")} for name, key, val in rows]

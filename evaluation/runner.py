@@ -1,0 +1,174 @@
+"""Run a planner over cases: one row per (case, planner), locally on all cores or on Ray.
+
+A case that raises becomes an error row carrying its message, and the run goes on.
+Rows are appended to the store as they finish; a rerun over the same folder resumes.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+import traceback
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mirrorpark_env.scenario import Scenario
+
+from .store import ResultStore
+
+MARGINS = ("M_f", "M_r", "M_e", "M_fl", "M_fr", "M_rl", "M_rr")
+
+_ENV = None  # one environment per worker process
+
+
+def _env():
+    global _ENV
+    if _ENV is None:
+        import gymnasium as gym
+
+        import mirrorpark_env  # noqa: F401
+
+        _ENV = gym.make("MirrorPark-v0").unwrapped
+    return _ENV
+
+
+def case_fields(sc: Scenario) -> dict[str, Any]:
+    return {
+        "case_id": sc.case_id,
+        "parking_type": sc.parking_type.value,
+        "road_width": sc.road_width,
+        "slot_length": sc.slot_length,
+        "slot_width": sc.slot_width,
+        "theta0_deg": round(sc.theta0_deg, 6),
+        "y0": sc.y0,
+        "y1": round(sc.road_width - sc.y0, 6),  # distance from the rear axle to the road boundary
+    }
+
+
+def run_case(planner: str, case_id: str) -> dict[str, Any]:
+    """One episode of ``planner`` on ``case_id``; never raises (errors become rows)."""
+    from planners.base import run_episode
+
+    from .registry import make_policy
+
+    t0 = time.perf_counter()
+    row: dict[str, Any] = {"planner": planner}
+    try:
+        sc = Scenario.from_case_id(case_id)
+        row.update(case_fields(sc))
+        policy = make_policy(planner)
+        info, steps = run_episode(_env(), policy, sc)
+        times = [1e3 * s.wall_time_s for s in policy.stats]
+        row.update(
+            success=bool(info["is_success"]),
+            failed_criterion=info["failed_criterion"],
+            collision=bool(info["collision"]),
+            heading_error_deg=float(info["heading_error_deg"]),
+            switches=int(info["direction_switches"]),
+            parking_time_s=float(info["parking_time"]),
+            path_length_m=float(info["path_length"]),
+            steps=steps,
+            planning_calls=len(times),
+            plan_time_median_ms=float(np.median(times)) if times else math.nan,
+            plan_time_max_ms=float(np.max(times)) if times else math.nan,
+            plan_times_ms=[round(t, 3) for t in times],
+            planner_status=policy.status,
+            error=None,
+        )
+        for m in MARGINS:
+            row[m] = float(info["margins"].get(m, math.nan))
+    except Exception as err:  # noqa: BLE001  (any failure of one case must not stop the run)
+        row.update(success=False, failed_criterion="error", planner_status="error",
+                   error=f"{type(err).__name__}: {err}", traceback=traceback.format_exc(limit=5))  # fmt: skip
+    row["episode_wall_s"] = time.perf_counter() - t0
+    return row
+
+
+def _run_case_tuple(args: tuple[str, str]) -> dict[str, Any]:
+    return run_case(*args)
+
+
+def evaluate(
+    planner: str,
+    scenarios: Iterable[Scenario],
+    out: str | Path,
+    workers: int | None = None,
+    backend: str = "local",
+    ray_address: str | None = None,
+    progress: bool = True,
+) -> ResultStore:
+    """Run ``planner`` over ``scenarios`` into the store at ``out``; resume where it stopped."""
+    from .registry import make_policy
+
+    make_policy(planner)  # an unknown planner fails now, not in every worker
+    if backend not in ("local", "ray"):
+        raise ValueError(f"backend: must be 'local' or 'ray', got {backend!r}")
+    store = ResultStore(out)
+    done = store.done()
+    todo = [sc.case_id for sc in scenarios if (planner, sc.case_id) not in done]
+    workers = workers or os.cpu_count() or 1
+    if workers < 1:
+        raise ValueError(f"workers: must be >= 1, got {workers}")
+    bar = _progress(len(todo), f"{planner}", progress, initial=0)
+    try:
+        if backend == "ray":
+            _run_ray(planner, todo, store, bar, ray_address, workers)
+        elif workers == 1:
+            for cid in todo:
+                store.append(run_case(planner, cid))
+                bar.update(1)
+        else:
+            import multiprocessing as mp
+
+            ctx = mp.get_context("fork" if hasattr(os, "fork") else "spawn")
+            with ctx.Pool(workers, maxtasksperchild=200) as pool:
+                for row in pool.imap_unordered(_run_case_tuple, ((planner, c) for c in todo), chunksize=1):
+                    store.append(row)
+                    bar.update(1)
+    finally:
+        bar.close()
+    store.compact()
+    return store
+
+
+def _run_ray(planner: str, todo: list[str], store: ResultStore, bar, address: str | None, workers: int) -> None:
+    try:
+        import ray
+    except ImportError:
+        raise ValueError("backend 'ray' needs the ray extra: pip install 'mirrorpark[ray]'") from None
+    if not ray.is_initialized():
+        if address:
+            ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+        else:
+            ray.init(num_cpus=workers, ignore_reinit_error=True, log_to_driver=False, include_dashboard=False)
+    task = ray.remote(num_cpus=1)(run_case)
+    pending = []
+    queue = list(todo)
+    limit = 4 * max(1, int(ray.available_resources().get("CPU", workers)))
+    while queue or pending:
+        while queue and len(pending) < limit:
+            pending.append(task.remote(planner, queue.pop(0)))
+        ready, pending = ray.wait(pending, num_returns=1)
+        for ref in ready:
+            store.append(ray.get(ref))
+            bar.update(1)
+
+
+class _NoBar:
+    def update(self, n: int) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+def _progress(total: int, desc: str, enabled: bool, initial: int = 0):
+    if not enabled:
+        return _NoBar()
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit="case", initial=initial, dynamic_ncols=True, smoothing=0.1)

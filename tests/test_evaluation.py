@@ -1,0 +1,193 @@
+"""Evaluation: summaries by hand, resumable runs, error rows, case files, Ray, report."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from evaluation import registry
+from evaluation.cases import load_case_file
+from evaluation.cli import main as cli
+from evaluation.metrics import headline, odd_size, summary
+from evaluation.report import write_report
+from evaluation.runner import evaluate
+from evaluation.store import ResultStore, read_results
+from planners.base import Policy
+
+A = "reverse_rw6.00_sl4.82_sw2.32_th+40_y3.00"
+B = "angle_rw3.50_sl4.82_sw2.77_th+10_y1.30"
+C = "parallel_rw4.00_sl7.32_sw2.50_th+10_y1.30"
+
+
+def _row(planner, ptype, success, switches, t, times, **kw):
+    base = dict(planner=planner, case_id=f"{ptype}_{kw.pop('k', 0)}", parking_type=ptype, road_width=4.0,
+                slot_length=5.0, slot_width=2.5, theta0_deg=0.0, y0=kw.pop("y0", 2.0), success=success,
+                switches=switches, parking_time_s=t, plan_times_ms=times, episode_wall_s=1.0,
+                failed_criterion=None if success else "time", planner_status="ok")  # fmt: skip
+    base.update(kw)
+    return base
+
+
+def hand_table() -> pd.DataFrame:
+    return pd.DataFrame([
+        _row("mirror", "parallel", True, 2, 20.0, [10, 20], k=1, y0=1.0),
+        _row("mirror", "parallel", False, 9, 180.0, [30], k=2, y0=2.0),
+        _row("mirror", "reverse", True, 4, 30.0, [40, 50, 60], k=3, y0=1.0),
+        _row("mirror", "reverse", True, 0, 10.0, [70], k=4, y0=2.0),
+        _row("base", "parallel", False, 1, 180.0, [100], k=1, y0=1.0),
+        _row("base", "parallel", False, 1, 180.0, [100], k=2, y0=2.0),
+        _row("base", "reverse", True, 6, 40.0, [200], k=3, y0=1.0),
+        _row("base", "reverse", False, 1, 180.0, [300], k=4, y0=2.0),
+    ])  # fmt: skip
+
+
+def test_summary_numbers_from_a_hand_made_table():
+    s = summary(hand_table(), "mirror")
+    assert s["cases"] == 4
+    assert s["success_rate"] == {"parallel": 0.5, "reverse": 1.0, "angle": None, "all": 0.75}
+    assert s["mean_switches"] == pytest.approx((2 + 4 + 0) / 3)  # successes only
+    assert s["mean_parking_time_s"] == pytest.approx(20.0)
+    # All seven calls pooled: 10 20 30 40 50 60 70 -> median 40, p95 by linear interpolation 67.
+    assert s["plan_time_ms"]["median"] == 40.0
+    assert s["plan_time_ms"]["p95"] == pytest.approx(67.0)
+    assert odd_size(hand_table()) == {"base": {"parallel": 0, "reverse": 1, "angle": 0, "all": 1},
+                                      "mirror": {"parallel": 1, "reverse": 2, "angle": 0, "all": 3}}  # fmt: skip
+    h = {r["measure"]: r["ours"] for r in headline(hand_table(), "mirror", "base")}
+    assert h["success rate"] == pytest.approx(100 * (0.75 - 0.25) / 0.25)  # +200 %
+    assert h["ODD size"] == pytest.approx(200.0)
+    assert h["direction switches"] == pytest.approx(100 * (2.0 - 6.0) / 6.0)
+
+
+class _Instant(Policy):
+    """Gives up at once: an episode of a few steps, for runner tests."""
+
+    name = "instant"
+    calls: list[str] = []
+
+    def reset(self, geometry):
+        _Instant.calls.append(geometry.scenario.case_id)
+        self.gave_up = True
+
+    def act(self, obs, info):
+        return np.zeros(2, dtype=np.float32)
+
+
+class _Interrupt(_Instant):
+    def reset(self, geometry):
+        if len(_Instant.calls) >= 2:
+            raise KeyboardInterrupt  # as if the user pressed Ctrl-C during the third case
+        super().reset(geometry)
+
+
+@pytest.fixture
+def stub_planners(monkeypatch):
+    _Instant.calls = []
+    monkeypatch.setitem(registry.PLANNERS, "instant", _Instant)
+    monkeypatch.setitem(registry.PLANNERS, "interrupt", _Interrupt)
+
+
+def _scenarios(*ids):
+    from mirrorpark_env import Scenario
+
+    return [Scenario.from_case_id(i) for i in ids]
+
+
+def test_resume_after_interruption_repeats_and_loses_nothing(tmp_path, stub_planners, monkeypatch):
+    cases = _scenarios(A, B, C)
+    monkeypatch.setitem(registry.PLANNERS, "instant", _Interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        evaluate("instant", cases, tmp_path, workers=1, progress=False)
+    assert len(ResultStore(tmp_path).table()) == 2  # two finished cases were kept
+    with (tmp_path / "journal.jsonl").open("a") as f:
+        f.write('{"planner": "instant", "case_id": "' + C + '", "succ')  # a line cut short
+    monkeypatch.setitem(registry.PLANNERS, "instant", _Instant)
+    _Instant.calls = []
+    evaluate("instant", cases, tmp_path, workers=1, progress=False)
+    assert _Instant.calls == [C]  # only the unfinished case ran again
+    df = read_results([tmp_path])
+    assert sorted(df["case_id"]) == sorted([A, B, C]) and not df.duplicated(["planner", "case_id"]).any()
+    assert (tmp_path / "results.parquet").exists()
+
+
+def test_a_case_that_raises_is_an_error_row(tmp_path, stub_planners):
+    from mirrorpark_env import Scenario
+
+    bad = Scenario("reverse", 6.0, 4.82, 1.5, 0.0, 2.0)  # narrower than the car: fails at reset
+    evaluate("instant", [bad, *_scenarios(A)], tmp_path, workers=1, progress=False)
+    df = read_results([tmp_path]).set_index("case_id")
+    assert df.loc[bad.case_id, "planner_status"] == "error"
+    assert "slot too small" in df.loc[bad.case_id, "error"]
+    assert not df.loc[bad.case_id, "success"]
+    assert df.loc[A, "planner_status"] != "error"
+
+
+def test_case_files(tmp_path):
+    good = tmp_path / "cases.csv"
+    good.write_text("parking_type,road_width,slot_length,slot_width,theta0_deg,y0\nreverse,6,4.82,2.3,10,2.5\n")
+    (sc,) = load_case_file(good)
+    assert sc.case_id == "reverse_rw6.00_sl4.82_sw2.30_th+10_y2.50"
+    js = tmp_path / "cases.json"
+    js.write_text(json.dumps([{"parking_type": "angle", "road_width": 4, "slot_length": 4.82, "slot_width": 2.0,
+                               "theta0_deg": 0, "y0": 2.0}]))  # fmt: skip
+    assert load_case_file(js)[0].parking_type.value == "angle"
+    bad = tmp_path / "bad.csv"
+    bad.write_text("parking_type,road_width,slot_length,slot_width,y0\nreverse,6,4.82,2.3,2.5\n")
+    with pytest.raises(ValueError, match=r"bad.csv: CSV header lacks theta0_deg"):
+        load_case_file(bad)
+    bad.write_text("parking_type,road_width,slot_length,slot_width,theta0_deg,y0\ndiagonal,6,4.82,2.3,0,2.5\n")
+    with pytest.raises(ValueError, match=r"case 1: parking_type: unknown 'diagonal'"):
+        load_case_file(bad)
+    bad.write_text("parking_type,road_width,slot_length,slot_width,theta0_deg,y0\nreverse,6,4.82,abc,0,2.5\n")
+    with pytest.raises(ValueError, match=r"case 1: slot_width: expected a number"):
+        load_case_file(bad)
+    js.write_text("{not json")
+    with pytest.raises(ValueError, match="not valid JSON"):
+        load_case_file(js)
+    with pytest.raises(ValueError, match="must end in .json or .csv"):
+        load_case_file(tmp_path / "cases.txt")
+
+
+def test_unknown_planner_is_named(tmp_path):
+    with pytest.raises(ValueError, match=r"planner: unknown 'hybrid-astar' \(issue 5 .* available: mirror"):
+        evaluate("hybrid-astar", _scenarios(A), tmp_path, progress=False)
+    assert cli(["evaluate", "--planner", "nope", "--sample", "smoke", "--out", str(tmp_path)]) == 2
+
+
+def test_two_cases_on_local_ray(tmp_path, require_module):
+    ray = require_module("ray")
+    try:
+        evaluate("mirror", _scenarios(A, B), tmp_path, workers=2, backend="ray", progress=False)
+    finally:
+        ray.shutdown()
+    df = read_results([tmp_path])
+    assert sorted(df["case_id"]) == sorted([A, B])
+    assert (df["planner_status"] != "error").all() and df["success"].all()
+
+
+def test_grid_count_json(capsys):
+    assert cli(["grid", "--count", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == {"parallel": 12420, "reverse": 46629, "angle": 11385, "total": 70434}
+
+
+def test_report_writes_markdown_and_figures(tmp_path):
+    path = write_report(hand_table(), tmp_path, baseline="base")
+    text = path.read_text()
+    assert "+40.6 %" in text and "+200.0 %" in text  # the paper's figure beside ours
+    for name in ("success_by_type", "success_vs_road_width", "sensitivity_slot", "sensitivity_y0",
+                 "sensitivity_y1", "odd_parallel", "odd_reverse", "efficiency", "plan_time"):  # fmt: skip
+        assert (tmp_path / f"{name}.png").stat().st_size > 1000
+        assert f"({name}.png)" in text
+
+
+def test_evaluate_cli_json_summary(tmp_path, capsys):
+    cases = tmp_path / "cases.csv"
+    cases.write_text("parking_type,road_width,slot_length,slot_width,theta0_deg,y0\nreverse,7,4.82,2.32,40,3.0\n")
+    assert cli(["evaluate", "--planner", "mirror", "--cases", str(cases), "--out", str(tmp_path / "r"),
+                "--workers", "1", "--quiet", "--json"]) == 0  # fmt: skip
+    s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert s["planner"] == "mirror" and s["cases"] == 1 and s["success_rate"]["reverse"] == 1.0
+    assert s["success_rate"]["parallel"] is None and not math.isnan(s["plan_time_ms"]["median"])
