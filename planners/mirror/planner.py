@@ -39,6 +39,7 @@ from .solvers import INACTIVE, QP, BranchAndBound, Disjunction, PiqpQP
 
 XI_X, XI_Y, XI_TH, XI_V, XI_A, XI_D = range(6)
 FLIP = np.diag([1.0, 1.0, 1.0, -1.0, -1.0, -1.0])  # planned <- real lag states at the switch
+TURN = math.inf  # seed mode: steer toward the target heading in both segments
 
 
 @dataclass(frozen=True)
@@ -223,6 +224,8 @@ class MirrorPlanner:
             v_ref = d * (vc1 if seg1 else vc2) * math.sin(math.pi * min(tau, 1.0))
             if cand.switch is None:
                 th_ref = tth
+            elif seg1 and swing == TURN:  # both segments rotate toward the target: a 3-point turn
+                th_ref = tth
             elif seg1 and swing is not None:  # multi-start: a heading excursion before the switch
                 th_ref = th0 + swing * math.sin(0.5 * math.pi * min(tau, 1.0))
             elif seg1:
@@ -272,7 +275,7 @@ class MirrorPlanner:
         theta_t = _unwrap_near(self.g.target[2], xi0[XI_TH])
         scored = []
         for cand in cands:
-            swings = [None] if cand.switch is None else [None, *self.cfg.seed_swings]
+            swings = [None] if cand.switch is None else [None, TURN, *self.cfg.seed_swings]
             for sw in swings:
                 real = self._seed(xi0, cand, sw)
                 scored.append((self._merit(real, theta_t), cand, real))
@@ -343,6 +346,8 @@ class MirrorPlanner:
             u_planned = x[self.iu0 : self.iS].reshape(N, NU)  # slack variables follow S
             real = self._rollout(xi0, u_planned, cand)
             hits = self._collisions(real)
+            if not hits and not self._truth_clear(xi0, self._real_commands(u_planned, cand)):
+                hits = self._collisions(real, margin=self.cfg.obstacle_margin)  # too close: constrain
             plan = self._make_plan(cand, u_planned, real, theta_t, not hits)
             if not hits and (best is None or plan.cost < best.cost):
                 best = plan
@@ -616,10 +621,20 @@ class MirrorPlanner:
             pl[s + 1 :, 3:] *= -1.0
         return pl
 
-    def _collisions(self, real_half: np.ndarray) -> list[tuple[int, int]]:
-        """(step, obstacle) pairs to constrain: steps next to any colliding half step."""
+    def _truth_clear(self, xi0: np.ndarray, u_real: np.ndarray, clearance: float = 0.005) -> bool:
+        """The plan's commands on the environment's own model (0.01 s sub-steps) keep clear."""
+        s, poses = xi0, []
+        for a, d in u_real:
+            sub = self.truth.step(s, a, d)
+            poses.append(sub[:, :3])
+            s = sub[-1, :6]
+        q = np.concatenate(poses)
+        return bool(self.g.checker.penetration(q[:, 0], q[:, 1], q[:, 2]).max() < -clearance)
+
+    def _collisions(self, real_half: np.ndarray, margin: float = 0.0) -> list[tuple[int, int]]:
+        """(step, obstacle) pairs to constrain: steps next to any half step closer than ``margin``."""
         pen = self.g.checker.penetration(real_half[:, 0], real_half[:, 1], real_half[:, 2])
-        hit = pen > -1e-9
+        hit = pen > -1e-9 - margin
         out = set()
         m = self.cfg.model_substeps
         for h, k in zip(*np.nonzero(hit)):

@@ -80,6 +80,8 @@ class MirrorPolicy(Policy):
             from .planner import last_failure
 
             self.stats.append(last_failure())
+            if self.plan is not None and self.k < len(self.plan.commands):
+                return  # keep to the verified plan rather than brake blindly while moving
             self.plan = None
             self._wait = self.retry_every
             self._failures += 1
