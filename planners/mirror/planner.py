@@ -127,6 +127,7 @@ class MirrorPlanner:
         self.iS = self.n_states + NU * N
         self.nz = self.iS + 2
         self._dyn_pattern()
+        self.last_stats: PlanStats | None = None  # the latest call's, a failed one's too
 
     # --------------------------------------------------------------- indices
     def ix(self, i: int, j: int) -> int:
@@ -156,7 +157,10 @@ class MirrorPlanner:
 
     # ------------------------------------------------------------------ plan
     def plan(self, state: VehicleState, candidates: list[Candidate] | None = None) -> Plan | None:
-        """Best collision-free plan over ``candidates`` (default: ``self.candidates``)."""
+        """Best collision-free plan over ``candidates`` (default: ``self.candidates``), or None.
+
+        Statistics of the call, a failed one included, are in ``self.last_stats``.
+        """
         t0 = time.perf_counter()
         xi0 = state.as_array()
         if not self.line.fixed:  # Eqs. (5), (6): bound by the heading change still to go
@@ -181,7 +185,8 @@ class MirrorPlanner:
         stats = PlanStats(time.perf_counter() - t0, status, totals["iterations"], totals["qp_solves"],
                           totals["nodes"], best.cost if best else math.nan,
                           {"candidates": tried, "stay_cost": stay})  # fmt: skip
-        return replace(best, stats=stats) if best is not None else _failed(stats)
+        self.last_stats = stats
+        return replace(best, stats=stats) if best is not None else None
 
     @property
     def first_direction(self) -> int:
@@ -655,19 +660,6 @@ class MirrorPlanner:
         planned = self._to_planned(real_half, cand)
         return Plan(self._real_commands(u_planned, cand), real, cand, S, self.line, planned, cost,
                     (pos_err, th_err), clear)  # fmt: skip
-
-
-_LAST_FAILURE: list[PlanStats] = []
-
-
-def _failed(stats: PlanStats) -> None:
-    _LAST_FAILURE[:] = [stats]
-    return None
-
-
-def last_failure() -> PlanStats:
-    """Statistics of the most recent planning call that found no plan."""
-    return _LAST_FAILURE[0] if _LAST_FAILURE else PlanStats(0.0, "infeasible")
 
 
 def _converged(real: np.ndarray, ref: np.ndarray, cfg: MirrorPlannerConfig) -> bool:

@@ -77,9 +77,7 @@ class MirrorPolicy(Policy):
             return
         plan = self.planner.plan(s)
         if plan is None:
-            from .planner import last_failure
-
-            self.stats.append(last_failure())
+            self.stats.append(self.planner.last_stats)
             if self.plan is not None and self.k < len(self.plan.commands):
                 return  # keep to the verified plan rather than brake blindly while moving
             self.plan = None
