@@ -172,6 +172,7 @@ class MirrorPlanner:
         tried = []
         theta_t = _unwrap_near(self.g.target[2], state.theta)
         stay = self._merit(np.repeat(xi0[None], 2 * self.N + 1, axis=0), theta_t)
+        partial: Plan | None = None
         for n, (cand, seed) in enumerate(seeds):
             if n >= self.cfg.refine_candidates and best is not None and best.cost < 0.9 * stay:
                 break  # refine the best few; go on down the list while none is clear and progressing
@@ -181,7 +182,12 @@ class MirrorPlanner:
             tried.append((cand, None if plan is None else round(plan.cost, 3), st["status"]))
             if plan is not None and plan.collision_free and (best is None or plan.cost < best.cost):
                 best = plan
+            p_ = st.get("partial")
+            if p_ is not None and (partial is None or p_.cost < partial.cost):
+                partial = p_
         status = "ok" if best is not None else "infeasible"
+        if partial is not None and partial.cost < 0.98 * min(stay, best.cost if best else math.inf):
+            best, status = partial, "partial"  # no full plan progresses: go as far as is safe
         stats = PlanStats(time.perf_counter() - t0, status, totals["iterations"], totals["qp_solves"],
                           totals["nodes"], best.cost if best else math.nan,
                           {"candidates": tried, "stay_cost": stay})  # fmt: skip
@@ -356,6 +362,7 @@ class MirrorPlanner:
             plan = self._make_plan(cand, u_planned, real, theta_t, not hits)
             if not hits and (best is None or plan.cost < best.cost):
                 best = plan
+
             if paper:  # the paper's scheme: one model, Algorithm I until clear
                 if not hits:
                     break
@@ -376,19 +383,18 @@ class MirrorPlanner:
                     break
         if best is not None:
             st["status"] = "ok"
+        elif ref_u is not None:  # no clear plan: the best iterate's safe start, if any
+            hits = self._collisions(ref_real)
+            if hits:
+                st["partial"] = self._safe_prefix(xi0, cand, ref_u, hits, theta_t)
         return best, st
 
     def _merit(self, real_half: np.ndarray, theta_t: float) -> float:
         """True cost of a rollout plus the exact penalty on its footprint's penetration."""
-        real = real_half[:: self.cfg.model_substeps]
-        tx, ty, _ = self.g.target
         cfg = self.cfg
-        pos_err = float(np.hypot(real[-1, 0] - tx, real[-1, 1] - ty))
-        th_err = float(abs(real[-1, 2] - theta_t))
-        run = (np.hypot(real[1:, 0] - tx, real[1:, 1] - ty) ** 2).sum() * cfg.w_position * cfg.dt
+        cost, _, _ = self._true_cost(real_half[:: cfg.model_substeps], theta_t)
         pen = self.g.checker.penetration(real_half[:, 0], real_half[:, 1], real_half[:, 2]).max(axis=1)
-        return (cfg.w_terminal_position * pos_err**2 + cfg.w_terminal_heading * th_err**2 + run
-                + cfg.w_slack * float(np.clip(pen + cfg.obstacle_margin, 0, None).sum()))  # fmt: skip
+        return cost + cfg.w_slack * float(np.clip(pen + cfg.obstacle_margin, 0, None).sum())
 
     # ------------------------------------------------------------------ cost
     def _cost(self, cand: Candidate, theta_t: float):
@@ -648,18 +654,55 @@ class MirrorPlanner:
                     out.add((int(j), int(k)))
         return sorted(out)
 
-    def _make_plan(self, cand, u_planned, real_half, theta_t, clear) -> Plan:
-        real = real_half[:: self.cfg.model_substeps]
+    def _true_cost(self, real: np.ndarray, theta_t: float) -> tuple[float, float, float]:
+        """(cost, position error, heading error) of real states at the control steps."""
+        cfg = self.cfg
         tx, ty, _ = self.g.target
         pos_err = float(np.hypot(real[-1, 0] - tx, real[-1, 1] - ty))
         th_err = float(abs(real[-1, 2] - theta_t))
-        cfg = self.cfg
-        run = np.hypot(real[1:, 0] - tx, real[1:, 1] - ty) ** 2 * cfg.w_position * cfg.dt
-        cost = float(cfg.w_terminal_position * pos_err**2 + cfg.w_terminal_heading * th_err**2 + run.sum())
+        run = float((np.hypot(real[1:, 0] - tx, real[1:, 1] - ty) ** 2).sum()) * cfg.w_position * cfg.dt
+        return cfg.w_terminal_position * pos_err**2 + cfg.w_terminal_heading * th_err**2 + run, pos_err, th_err
+
+    def _make_plan(self, cand, u_planned, real_half, theta_t, clear) -> Plan:
+        real = real_half[:: self.cfg.model_substeps]
+        cost, pos_err, th_err = self._true_cost(real, theta_t)
         S = tuple(real[cand.switch, :2]) if cand.switch is not None else None
         planned = self._to_planned(real_half, cand)
         return Plan(self._real_commands(u_planned, cand), real, cand, S, self.line, planned, cost,
                     (pos_err, th_err), clear)  # fmt: skip
+
+    def _safe_prefix(self, xi0, cand, u_planned, hits, theta_t) -> Plan | None:
+        """The colliding plan's start, braking to a stop before its first contact.
+
+        Verified on the environment's own model with the same clearance as full plans;
+        used when no candidate yields a clear plan that makes progress.
+        """
+        p = self.p
+        u_real = self._real_commands(u_planned, cand)
+        first = min(i for i, _ in hits)
+        for cut in (first - 3, first - 8, first - 15):
+            if cut < 3:
+                break
+            s, states, poses, cmds = xi0, [xi0], [], []
+            for i in range(self.N):
+                if i < cut:
+                    a, d = u_real[i]
+                else:  # brake to a stop, wheels held
+                    a = max(p.a_min, min(p.a_max, -s[XI_V] / 0.3 - s[XI_A] if abs(s[XI_V]) > 1e-3 else -s[XI_A]))
+                    d = s[XI_D]
+                sub = self.truth.step(s, a, d)
+                poses.append(sub[:, :3])
+                s = sub[-1, :6]
+                states.append(s)
+                cmds.append((a, d))
+            q = np.concatenate(poses)
+            if self.g.checker.penetration(q[:, 0], q[:, 1], q[:, 2]).max() < -0.005 and abs(s[XI_V]) < 0.05:
+                real = np.array(states)
+                cost, pos_err, th_err = self._true_cost(real, theta_t)
+                sw = cand.switch if cand.switch is not None and cand.switch < cut else None
+                return Plan(np.array(cmds), real, Candidate(cand.direction, sw), tuple(real[sw, :2]) if sw else None,
+                            self.line, real, cost, (pos_err, th_err), True)  # fmt: skip
+        return None
 
 
 def _converged(real: np.ndarray, ref: np.ndarray, cfg: MirrorPlannerConfig) -> bool:
