@@ -324,6 +324,8 @@ class MirrorPlanner:
             ref_real = seed if seed is not None else self._seed(xi0, cand)
             ref_u = self._planned_controls(ref_real, cand)
             ref_merit = self._merit(ref_real, theta_t)
+            if not self._collisions(ref_real) and self._truth_safe(xi0, self._real_commands(ref_u, cand)):
+                best = self._make_plan(cand, ref_u, ref_real, theta_t, True)  # the seed is a plan too
         trust_scale = 1.0
         for it in range(cfg.max_iterations):
             st["iterations"] += 1
@@ -357,7 +359,7 @@ class MirrorPlanner:
             u_planned = x[self.iu0 : self.iS].reshape(N, NU)  # slack variables follow S
             real = self._rollout(xi0, u_planned, cand)
             hits = self._collisions(real)
-            if not hits and not self._truth_clear(xi0, self._real_commands(u_planned, cand)):
+            if not hits and not self._truth_safe(xi0, self._real_commands(u_planned, cand)):
                 hits = self._collisions(real, margin=self.cfg.obstacle_margin)  # too close: constrain
             plan = self._make_plan(cand, u_planned, real, theta_t, not hits)
             if not hits and (best is None or plan.cost < best.cost):
@@ -370,6 +372,8 @@ class MirrorPlanner:
                     theta_set[(i, k)] = None
                 ref_real, ref_u = real, u_planned
                 continue
+            for i, k in hits:  # Algorithm I on the new solution too, accepted or not
+                theta_set[(i, k)] = None
             merit = self._merit(real, theta_t)
             if merit < ref_merit - 1e-6:
                 converged = _converged(real, ref_real, cfg)
@@ -632,15 +636,17 @@ class MirrorPlanner:
             pl[s + 1 :, 3:] *= -1.0
         return pl
 
-    def _truth_clear(self, xi0: np.ndarray, u_real: np.ndarray, clearance: float = 0.005) -> bool:
-        """The plan's commands on the environment's own model (0.01 s sub-steps) keep clear."""
+    def _truth_safe(self, xi0: np.ndarray, u_real: np.ndarray, clearance: float = 0.005) -> bool:
+        """On the environment's own model (0.01 s sub-steps) the plan keeps clear and ends
+        standing, so that whatever comes after it, the car is at rest."""
         s, poses = xi0, []
         for a, d in u_real:
             sub = self.truth.step(s, a, d)
             poses.append(sub[:, :3])
             s = sub[-1, :6]
         q = np.concatenate(poses)
-        return bool(self.g.checker.penetration(q[:, 0], q[:, 1], q[:, 2]).max() < -clearance)
+        clear = self.g.checker.penetration(q[:, 0], q[:, 1], q[:, 2]).max() < -clearance
+        return bool(clear and abs(s[XI_V]) < 0.05)
 
     def _collisions(self, real_half: np.ndarray, margin: float = 0.0) -> list[tuple[int, int]]:
         """(step, obstacle) pairs to constrain: steps next to any half step closer than ``margin``."""
