@@ -21,6 +21,15 @@ def _plt():
     return plt
 
 
+def _save(fig, path: Path) -> Path:
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def _rate_by(df: pd.DataFrame, col: str) -> pd.Series:
     return df.assign(success=df["success"].fillna(False).astype(float)).groupby(col)["success"].mean()
 
@@ -39,11 +48,7 @@ def fig_success_by_type(df, planners, out: Path) -> Path:
     ax.set_ylim(0, 100)
     ax.legend()
     ax.set_title("Success rate per parking type (paper Fig. 20)")
-    path = out / "success_by_type.png"
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, out / "success_by_type.png")
 
 
 def _per_type_lines(df, planners, col, out: Path, name: str, title: str, xlabel_fn) -> Path:
@@ -62,11 +67,7 @@ def _per_type_lines(df, planners, col, out: Path, name: str, title: str, xlabel_
     axes[0].set_ylabel("success rate [%]")
     axes[0].legend()
     fig.suptitle(title)
-    fig.tight_layout()
-    path = out / name
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, out / name)
 
 
 def fig_odd(df, planners, t: str, out: Path, sizes) -> Path:
@@ -83,11 +84,7 @@ def fig_odd(df, planners, t: str, out: Path, sizes) -> Path:
         ax.set_title(f"{p}: ODD {sizes.get(p, {}).get(t, 0)} cells")
         ax.legend(fontsize=7)
     fig.suptitle(f"{t}: results and ODD (paper Fig. 24)")
-    fig.tight_layout()
-    path = out / f"odd_{t}.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, out / f"odd_{t}.png")
 
 
 def fig_efficiency(df, planners, out: Path) -> Path:
@@ -105,11 +102,7 @@ def fig_efficiency(df, planners, out: Path) -> Path:
         ax.set_ylabel(label)
         ax.tick_params(axis="x", labelsize=7)
     fig.suptitle("Completion efficiency over successful episodes (paper Fig. 25)")
-    fig.tight_layout()
-    path = out / "efficiency.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, out / "efficiency.png")
 
 
 def fig_plan_time(df, planners, out: Path) -> Path:
@@ -125,11 +118,7 @@ def fig_plan_time(df, planners, out: Path) -> Path:
     ax.set_ylabel("calls")
     ax.legend()
     ax.set_title("Planning time per call")
-    path = out / "plan_time.png"
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, out / "plan_time.png")
 
 
 def _fmt(v, pct=False) -> str:
