@@ -191,3 +191,17 @@ def test_evaluate_cli_json_summary(tmp_path, capsys):
     s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert s["planner"] == "mirror" and s["cases"] == 1 and s["success_rate"]["reverse"] == 1.0
     assert s["success_rate"]["parallel"] is None and not math.isnan(s["plan_time_ms"]["median"])
+
+
+def test_store_rolls_the_journal_into_parquet_parts(tmp_path):
+    store = ResultStore(tmp_path, part_rows=3)
+    for i in range(7):
+        store.append({"planner": "p", "case_id": f"c{i}", "success": i % 2 == 0, "plan_times_ms": [1.0, 2.0]})
+    assert len(list((tmp_path / "parts").glob("part-*.parquet"))) == 2  # 6 rows rolled over
+    assert len((tmp_path / "journal.jsonl").read_text().splitlines()) == 1
+    df = ResultStore(tmp_path).table()
+    assert sorted(df["case_id"]) == [f"c{i}" for i in range(7)]
+    assert ResultStore(tmp_path).done() == {("p", f"c{i}") for i in range(7)}
+    store.append({"planner": "p", "case_id": "c0", "success": False})  # a later row for a case wins
+    df = ResultStore(tmp_path).table().set_index("case_id")
+    assert len(df) == 7 and not df.loc["c0", "success"]
