@@ -31,11 +31,6 @@ from .vehicle import CORNER_NAMES
 CRITERIA = ("collision", "time", "heading", "inside_slot", "margins", "stopped")
 
 
-def wrap_angle(a):
-    """Angle(s) wrapped to (-pi, pi]."""
-    return -((-np.asarray(a) + np.pi) % (2 * np.pi) - np.pi)
-
-
 @dataclass(frozen=True)
 class Verdict:
     """The outcome of the success check at one instant."""

@@ -111,14 +111,6 @@ class VehicleState:
     def as_array(self) -> np.ndarray:
         return np.array([self.x, self.y, self.theta, self.v, self.a, self.delta])
 
-    @classmethod
-    def from_array(cls, s: np.ndarray) -> VehicleState:
-        return cls(*(float(v) for v in s[:6]))
-
-
-# State vector layout used by the fast path: [x, y, theta, v, a, delta].
-X, Y, THETA, V, A, DELTA = range(6)
-
 
 class TruthModel:
     """Propagates the truth model over one control step with constant commands.
