@@ -359,10 +359,11 @@ class MirrorPlanner:
             u_planned = x[self.iu0 : self.iS].reshape(N, NU)  # slack variables follow S
             real = self._rollout(xi0, u_planned, cand)
             hits = self._collisions(real)
-            if not hits and not self._truth_safe(xi0, self._real_commands(u_planned, cand)):
+            clear = not hits and self._truth_safe(xi0, self._real_commands(u_planned, cand))
+            if not hits and not clear:
                 hits = self._collisions(real, margin=self.cfg.obstacle_margin)  # too close: constrain
-            plan = self._make_plan(cand, u_planned, real, theta_t, not hits)
-            if not hits and (best is None or plan.cost < best.cost):
+            plan = self._make_plan(cand, u_planned, real, theta_t, clear)
+            if clear and (best is None or plan.cost < best.cost):
                 best = plan
 
             if paper:  # the paper's scheme: one model, Algorithm I until clear
@@ -644,9 +645,12 @@ class MirrorPlanner:
             sub = self.truth.step(s, a, d)
             poses.append(sub[:, :3])
             s = sub[-1, :6]
+        return self._clear_and_stopped(poses, s, clearance)
+
+    def _clear_and_stopped(self, poses: list[np.ndarray], end: np.ndarray, clearance: float = 0.005) -> bool:
         q = np.concatenate(poses)
         clear = self.g.checker.penetration(q[:, 0], q[:, 1], q[:, 2]).max() < -clearance
-        return bool(clear and abs(s[XI_V]) < 0.05)
+        return bool(clear and abs(end[XI_V]) < 0.05)
 
     def _collisions(self, real_half: np.ndarray, margin: float = 0.0) -> list[tuple[int, int]]:
         """(step, obstacle) pairs to constrain: steps next to any half step closer than ``margin``."""
@@ -701,8 +705,7 @@ class MirrorPlanner:
                 s = sub[-1, :6]
                 states.append(s)
                 cmds.append((a, d))
-            q = np.concatenate(poses)
-            if self.g.checker.penetration(q[:, 0], q[:, 1], q[:, 2]).max() < -0.005 and abs(s[XI_V]) < 0.05:
+            if self._clear_and_stopped(poses, s):
                 real = np.array(states)
                 cost, pos_err, th_err = self._true_cost(real, theta_t)
                 sw = cand.switch if cand.switch is not None and cand.switch < cut else None
