@@ -146,16 +146,22 @@ def _run_ray(planner: str, todo: list[str], store: ResultStore, bar, address: st
         else:
             ray.init(num_cpus=workers, ignore_reinit_error=True, log_to_driver=False, include_dashboard=False)
     task = ray.remote(num_cpus=1)(run_case)
-    pending = []
-    queue = list(todo)
     limit = 4 * max(1, int(ray.available_resources().get("CPU", workers)))
-    while queue or pending:
-        while queue and len(pending) < limit:
-            pending.append(task.remote(planner, queue.pop(0)))
+    pending = []
+
+    def collect() -> None:
+        nonlocal pending
         ready, pending = ray.wait(pending, num_returns=1)
         for ref in ready:
             store.append(ray.get(ref))
             bar.update(1)
+
+    for cid in todo:  # a few tasks in flight per CPU; one new task per finished one
+        pending.append(task.remote(planner, cid))
+        if len(pending) >= limit:
+            collect()
+    while pending:
+        collect()
 
 
 class _NoBar:
