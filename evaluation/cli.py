@@ -128,7 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--quiet", action="store_true", help="no progress bar")
 
     e = sub.add_parser("evaluate", help="run a planner over grid cases; resumable")
-    e.add_argument("--planner", required=True, help="mirror, mirror-paper (later: hybrid-astar, rl:PATH)")
+    e.add_argument("--planner", required=True, help="mirror, mirror-paper, hybrid-astar (later: rl:PATH)")
     case_args(e)
     e.add_argument("--backend", default="local", choices=["local", "ray"])
     e.add_argument("--address", default=None, help="Ray cluster address (default: start a local Ray)")

@@ -20,11 +20,18 @@ def _mirror_paper() -> Policy:
     return MirrorPolicy(MirrorPlannerConfig(linearisation="paper"))
 
 
+def _hybrid_astar() -> Policy:
+    from planners.hybrid_astar.policy import HybridAStarPolicy
+
+    return HybridAStarPolicy()
+
+
 PLANNERS: dict[str, Callable[[], Policy]] = {
     "mirror": _mirror,  # SCP re-linearisation (the default)
     "mirror-paper": _mirror_paper,  # the paper's fixed-angle linearisation, for comparison
+    "hybrid-astar": _hybrid_astar,  # the search-based baseline
 }
-PLANNED = {"hybrid-astar": "issue 5 (hybrid A* baseline)", "rl:PATH": "issue 6 (RL baseline)"}
+PLANNED = {"rl:PATH": "issue 6 (RL baseline)"}
 
 
 def available() -> list[str]:

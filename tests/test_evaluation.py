@@ -152,8 +152,8 @@ def test_case_files(tmp_path):
 
 
 def test_unknown_planner_is_named(tmp_path):
-    with pytest.raises(ValueError, match=r"planner: unknown 'hybrid-astar' \(issue 5 .* available: mirror"):
-        evaluate("hybrid-astar", _scenarios(A), tmp_path, progress=False)
+    with pytest.raises(ValueError, match=r"planner: unknown 'astar'; available: mirror, mirror-paper, hybrid-astar"):
+        evaluate("astar", _scenarios(A), tmp_path, progress=False)
     assert cli(["evaluate", "--planner", "nope", "--sample", "smoke", "--out", str(tmp_path)]) == 2
 
 

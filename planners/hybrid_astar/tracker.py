@@ -1,0 +1,141 @@
+"""Path tracking for a planned path: a speed profile with stops at cusps and a rear-axle
+lateral law, within the car's limits.
+
+Each gear segment is driven in three phases: steer while standing to the segment's first
+curvature (the real car re-steers standing, DESIGN.md section 5), drive, and stop at
+its end. Steering is the path's curvature (looked ahead by the steering lag) plus
+feedback on the rear axle's lateral and heading error, with gains that give the error a
+critically damped response over ``preview`` metres, in either gear:
+
+    kappa = kappa_ref - e_y / preview**2 - gear * 2 * e_theta / preview
+
+Speed follows ``min(cruise, sqrt(2 * decel * remaining))`` with the remaining distance
+shortened by what the car rolls on while it stops, and it switches to a critically damped
+stop (``hold_command``) once it is within that distance of the segment's end.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from mirrorpark_env.vehicle import VehicleParams, VehicleState
+
+from .search import Path
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    cruise_speed: float = 1.0  # [m/s]
+    accel: float = 1.0  # [m/s^2] to reach cruise speed
+    decel: float = 1.0  # [m/s^2] of the planned stop profile
+    preview: float = 1.2  # [m] distance over which lateral errors decay
+    speed_gain: float = 2.0  # [1/s]
+    steer_tolerance: float = 0.03  # [rad] standing re-steer is done within this
+    max_lateral_error: float = 0.15  # [m] beyond this the policy replans
+    max_heading_error_deg: float = 5.0
+
+    def __post_init__(self) -> None:
+        for name in ("cruise_speed", "accel", "decel", "preview", "speed_gain", "steer_tolerance",
+                     "max_lateral_error", "max_heading_error_deg"):  # fmt: skip
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name}: must be a finite number > 0, got {v!r}")
+
+
+class PathTracker:
+    """Turns a ``Path`` into [accel, steer] commands; ``done`` once it stands at the end."""
+
+    def __init__(self, path: Path, params: VehicleParams, config: TrackerConfig | None = None):
+        self.cfg = config or TrackerConfig()
+        self.params = params
+        self.path = path
+        self.segments = path.segments()
+        p = path.poses
+        ds = np.hypot(*np.diff(p[:, :2], axis=0).T)
+        self.s = np.concatenate(([0.0], np.cumsum(ds)))  # arc length along the whole path
+        self.seg = 0
+        self.j = self.segments[0][0] if self.segments else 0
+        self.phase = "steer"
+        self.done = not self.segments
+        self.drifted = False
+        self.e_y = 0.0
+        self.e_theta = 0.0
+
+    def _kappa_at(self, s: float, i0: int, i1: int) -> float:
+        k = int(np.searchsorted(self.s[i0 : i1 + 1], s)) + i0
+        return float(self.path.curvature[min(max(k, i0 + 1), i1)])
+
+    def command(self, st: VehicleState) -> tuple[float, float]:
+        """Acceleration and steering commands [m/s^2, rad] for the measured state."""
+        p, cfg, car = self.params, self.cfg, self.params
+        if self.done:
+            return self._hold(st, st.delta)
+        i0, i1 = self.segments[self.seg]
+        gear = float(self.path.direction[i1])
+        if self.phase == "steer":
+            delta0 = self._steer_for(self._kappa_at(self.s[i0] + 0.1, i0, i1))
+            if abs(st.delta - delta0) < cfg.steer_tolerance and abs(st.v) < 0.02:
+                self.phase = "drive"
+            else:
+                return self._hold(st, delta0)
+        # Nearest path sample ahead of the last one, within this segment.
+        poses = self.path.poses
+        hi = min(i1, self.j + 40)
+        d2 = (poses[self.j : hi + 1, 0] - st.x) ** 2 + (poses[self.j : hi + 1, 1] - st.y) ** 2
+        self.j = j = self.j + int(np.argmin(d2))
+        xr, yr, thr = poses[j]
+        c, s = math.cos(thr), math.sin(thr)
+        dx, dy = st.x - xr, st.y - yr
+        along = gear * (c * dx + s * dy)  # progress past sample j in the driving direction
+        self.e_y = -s * dx + c * dy
+        self.e_theta = math.remainder(st.theta - thr, 2 * math.pi)
+        if abs(self.e_y) > cfg.max_lateral_error or abs(self.e_theta) > math.radians(cfg.max_heading_error_deg):
+            self.drifted = True
+        s_now = self.s[j] + along
+        remaining = self.s[i1] - s_now
+        speed = abs(st.v)
+        if self.phase == "drive":
+            # Distance the hold law of _hold rolls on from here: 2 tau v + tau^2 a (along the gear).
+            roll = 2.0 * p.tau_a * speed + p.tau_a**2 * gear * st.a
+            if remaining <= max(roll, 0.005):
+                self.phase = "stop"
+        if self.phase == "stop":
+            if speed < 0.01 and abs(st.a) < 0.2:
+                return self._next_segment(st)
+            return self._hold(st, st.delta)
+        kappa_ref = self._kappa_at(s_now + speed * p.tau_delta + 0.05, i0, i1)
+        kappa = kappa_ref - self.e_y / cfg.preview**2 - gear * 2.0 * self.e_theta / cfg.preview
+        delta = self._steer_for(kappa)
+        room = max(remaining - 2.0 * p.tau_a * speed, 0.0)
+        v_ref = min(cfg.cruise_speed, math.sqrt(2.0 * cfg.decel * room), speed + cfg.accel * 0.5 + 0.1)
+        a = cfg.speed_gain * (gear * v_ref - st.v)
+        return max(p.a_min, min(p.a_max, a)), delta
+
+    def _next_segment(self, st: VehicleState) -> tuple[float, float]:
+        if self.seg + 1 >= len(self.segments):
+            self.done = True
+            return self._hold(st, st.delta)
+        self.seg += 1
+        self.j = self.segments[self.seg][0]
+        self.phase = "steer"
+        return self.command(st)
+
+    def _steer_for(self, kappa: float) -> float:
+        p = self.params
+        return max(-p.max_steer, min(p.max_steer, math.atan(p.wheelbase * kappa)))
+
+    def _hold(self, st: VehicleState, delta: float) -> tuple[float, float]:
+        """Brake to a stand (or stay there) while steering to ``delta``."""
+        return hold_command(self.params, st), max(-self.params.max_steer, min(self.params.max_steer, delta))
+
+
+def hold_command(p: VehicleParams, st: VehicleState) -> float:
+    """Acceleration command that brings the car to a stand without rolling back.
+
+    With the acceleration lag tau, a_cmd = -(v / tau + a) makes the speed critically
+    damped (double pole at -1/tau): from speed v0 it rolls on 2 tau v0 + tau^2 a0.
+    """
+    return max(p.a_min, min(p.a_max, -(st.v / p.tau_a + st.a)))

@@ -1,0 +1,134 @@
+"""The hybrid A* baseline: Reeds-Shepp connection, exact clearance, closed loop, budget."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import shapely
+
+import mirrorpark_env  # noqa: F401
+from mirrorpark_env import Scenario, VehicleParams
+from mirrorpark_env.vehicle import footprint
+from planners.base import run_episode
+from planners.hybrid_astar.heuristic import GridDistance, ReedsShepp
+from planners.hybrid_astar.search import HybridAStar, HybridAStarConfig, Path
+from planners.hybrid_astar.policy import HybridAStarPolicy
+
+P = VehicleParams()
+R = P.wheelbase / math.tan(P.max_steer)
+
+
+def test_reeds_shepp_on_an_empty_map_stays_within_limits():
+    rs = ReedsShepp(R)
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        a = (*rng.uniform(-5, 5, 2), rng.uniform(-math.pi, math.pi))
+        b = (*rng.uniform(-5, 5, 2), rng.uniform(-math.pi, math.pi))
+        poses = rs.sample(a, b, 0.05)
+        assert poses[0] == pytest.approx(a) and poses[-1] == pytest.approx(b)
+        step = np.hypot(*np.diff(poses[:, :2], axis=0).T)
+        assert step.max() <= 0.05 + 1e-9
+        path = Path.from_poses(poses)
+        # Chords of the arcs: never longer; shorter by at most a sample per cusp cut across.
+        length = rs.distance(a, b)
+        assert length - 0.05 * (path.switches + 1) <= step.sum() <= length + 1e-9
+        # Curvature within the car's limit, except for chords that cut across a cusp (next
+        # to a gear change, or at an end, where a segment shorter than a sample may sit).
+        inner = np.ones(len(poses), dtype=bool)
+        cusp = np.flatnonzero(np.diff(path.direction)) + 1
+        inner[np.concatenate((cusp - 1, cusp, cusp + 1, [0, 1, len(poses) - 1])).clip(0, len(poses) - 1)] = False
+        assert np.abs(path.curvature[inner]).max() <= (1 / R) * (1 + 1e-4)  # chord, not arc
+    # A pure lateral shift needs turning both ways: longer than the shift itself.
+    assert rs.distance((0, 0, 0), (0, 1, 0)) > 2.0
+
+
+def test_grid_distance_is_a_lower_bound_around_a_wall():
+    g = Scenario.from_degrees("reverse", 6.0, 4.82, 2.3, 0, 2.5).build()
+    window = (-10.0, 15.0, g.bounds[2], 6.0)
+    grid = GridDistance(g.obstacles, window, g.target[:2], resolution=0.25)
+    tx, ty = g.target[:2]
+    # Straight above the target: never more than the straight line (a lower bound), and
+    # within the octile discount of it.
+    straight = math.hypot(0.0, 3.0 - ty)
+    assert 0.85 * straight <= grid(tx, 3.0) <= straight
+    # Above the left neighbour the straight line cuts through it: the rear axle must go
+    # round its corner at (0, 0), kept 0.5 m away, so the distance is visibly longer.
+    straight = math.hypot(-3.0 - tx, 3.0 - ty)
+    around = math.hypot(-3.0 - 0.5, 3.0) + math.hypot(0.5 - tx, ty)
+    assert straight + 0.1 <= grid(-3.0, 3.0) <= around
+    assert math.isinf(grid(-5.0, -2.0))  # inside the left neighbour
+
+
+def _swept_clear(geometry, poses, clearance):
+    """Footprints at 5 mm spacing along the path, each at least ``clearance`` from every obstacle."""
+    fine = [poses[0]]
+    for a, b in zip(poses[:-1], poses[1:]):
+        n = max(1, math.ceil(math.hypot(*(b[:2] - a[:2])) / 0.005))
+        t = np.linspace(0, 1, n + 1)[1:, None]
+        dth = math.remainder(b[2] - a[2], 2 * math.pi)
+        fine.extend(np.hstack((a[:2] + t * (b[:2] - a[:2]), a[2] + t * dth)))
+    fine = np.array(fine)
+    corners = footprint(geometry.vehicle, fine[:, 0], fine[:, 1], fine[:, 2])
+    cars = shapely.polygons(corners)
+    obstacles = [shapely.Polygon(p) for p in geometry.obstacles.polygons]
+    return min(float(shapely.distance(cars, o).min()) for o in obstacles)
+
+
+@pytest.mark.parametrize(
+    "case_id",
+    [
+        "parallel_rw3.50_sl4.82_sw2.50_th+0_y1.70",  # tight: six switches
+        "reverse_rw5.00_sl4.82_sw1.87_th-40_y3.00",
+        "angle_rw3.50_sl4.82_sw2.02_th+0_y1.70",
+    ],
+)
+def test_a_path_never_comes_near_an_obstacle(case_id):
+    g = Scenario.from_case_id(case_id).build()
+    planner = HybridAStar(g)
+    path, stats = planner.plan((g.start.x, g.start.y, g.start.theta))
+    assert stats.status == "ok" and path is not None
+    assert path.poses[0] == pytest.approx((g.start.x, g.start.y, g.start.theta))
+    assert path.poses[-1] == pytest.approx(g.target) or planner.in_goal_set(path.poses[-1])
+    # Shapely, sampled ten times finer than the planner checks: the whole sweep keeps the clearance.
+    assert _swept_clear(g, path.poses, 0.0) >= planner.cfg.clearance - 0.005
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "case_id",
+    [
+        "parallel_rw4.00_sl7.32_sw2.50_th+10_y1.30",
+        "reverse_rw7.00_sl4.82_sw2.32_th+40_y3.00",
+        "angle_rw3.50_sl4.82_sw2.77_th+10_y1.30",
+        "parallel_rw3.50_sl4.82_sw2.50_th+0_y1.70",  # tight, with switches
+    ],
+)
+def test_easy_cases_park(case_id):
+    env = gym.make("MirrorPark-v0").unwrapped
+    policy = HybridAStarPolicy()
+    info, _ = run_episode(env, policy, case_id)
+    assert info["is_success"], (info["failed_criterion"], info["vehicle_state"])
+    assert [s.status for s in policy.stats] == ["ok"]
+
+
+def test_budget_exhaustion_is_a_status_not_an_exception():
+    g = Scenario.from_case_id("parallel_rw3.50_sl4.82_sw2.50_th+0_y1.70").build()
+    path, stats = HybridAStar(g, HybridAStarConfig(time_budget_s=1e-4)).plan((g.start.x, g.start.y, g.start.theta))
+    assert path is None and stats.status == "budget"
+    env = gym.make("MirrorPark-v0").unwrapped
+    policy = HybridAStarPolicy(HybridAStarConfig(time_budget_s=1e-4))
+    info, steps = run_episode(env, policy, "parallel_rw3.50_sl4.82_sw2.50_th+0_y1.70")
+    assert policy.gave_up and policy.status == "budget" and steps == 1
+    assert not info["is_success"] and not info["collision"]
+
+
+def test_bad_config_is_rejected_naming_the_field():
+    with pytest.raises(ValueError, match=r"n_steer: must be an odd integer"):
+        HybridAStarConfig(n_steer=4)
+    with pytest.raises(ValueError, match=r"time_budget_s: must be a finite number > 0"):
+        HybridAStarConfig(time_budget_s=float("nan"))
+    with pytest.raises(ValueError, match=r"steer_fraction: must be in \(0, 1\]"):
+        HybridAStarConfig(steer_fraction=1.5)
