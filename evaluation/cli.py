@@ -128,7 +128,9 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--quiet", action="store_true", help="no progress bar")
 
     e = sub.add_parser("evaluate", help="run a planner over grid cases; resumable")
-    e.add_argument("--planner", required=True, help="mirror, mirror-paper, hybrid-astar (later: rl:PATH)")
+    e.add_argument("--planner", required=True,
+                   help="mirror, mirror-paper, hybrid-astar, or rl:PATH (a model.zip from train-rl; "
+                   "loading it runs pickled code: name only files you trust)")  # fmt: skip
     case_args(e)
     e.add_argument("--backend", default="local", choices=["local", "ray"])
     e.add_argument("--address", default=None, help="Ray cluster address (default: start a local Ray)")
@@ -154,7 +156,41 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--env-steps", type=int, default=5000)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench)
+
+    t = sub.add_parser("train-rl", help="train the RL baseline (SAC/TQC + HER); needs the rl extra")
+    t.add_argument("--algo", choices=["sac", "tqc"], default=None, help="default: configs/rl.yaml (sac)")
+    t.add_argument("--steps", type=int, default=None, help="environment steps (default: configs/rl.yaml)")
+    t.add_argument("--parking-type", nargs="+", choices=["parallel", "reverse", "angle"], default=None,
+                   dest="parking_types", help="train on these types (default: all three)")  # fmt: skip
+    t.add_argument("--config", default=None, help="hyper-parameter YAML (default: configs/rl.yaml)")
+    t.add_argument("--no-curriculum", action="store_true", help="draw from all cases from the start")
+    t.add_argument("--seed", type=int, default=None)
+    t.add_argument("--out", default="results/rl", help="output folder (default: results/rl)")
+    t.set_defaults(func=cmd_train_rl)
     return ap
+
+
+def cmd_train_rl(args: argparse.Namespace) -> int:
+    from planners.rl.config import load_rl_config
+
+    over = {"algo": args.algo, "total_steps": args.steps, "parking_types": args.parking_types, "seed": args.seed}
+    cfg = load_rl_config(args.config, over)
+    if args.no_curriculum:
+        cfg = cfg.model_copy(update={"curriculum": cfg.curriculum.model_copy(update={"enabled": False})})
+    try:
+        import stable_baselines3  # noqa: F401
+        import torch  # noqa: F401
+
+        if cfg.algo == "tqc":
+            import sb3_contrib  # noqa: F401
+        from planners.rl.train import train
+    except ImportError as err:
+        raise ValueError(f"train-rl needs the rl extra ({err.name} is missing): "
+                         "pip install torch==2.13.0 && pip install -e '.[rl]'") from None  # fmt: skip
+    summary = train(cfg, args.out)
+    print(json.dumps({k: v for k, v in summary.items() if k != "config"}))
+    print(f"model: {Path(args.out) / 'model.zip'}  (evaluate it with --planner rl:{Path(args.out) / 'model.zip'})")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:

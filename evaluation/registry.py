@@ -31,18 +31,23 @@ PLANNERS: dict[str, Callable[[], Policy]] = {
     "mirror-paper": _mirror_paper,  # the paper's fixed-angle linearisation, for comparison
     "hybrid-astar": _hybrid_astar,  # the search-based baseline
 }
-PLANNED = {"rl:PATH": "issue 6 (RL baseline)"}
 
 
 def available() -> list[str]:
+    """Named planners; a trained RL model is named ``rl:PATH`` (see ``make_policy``)."""
     return list(PLANNERS)
 
 
 def make_policy(name: str) -> Policy:
-    """A fresh policy for ``name``; raises ``ValueError`` naming the available planners."""
+    """A fresh policy for ``name``; raises ``ValueError`` naming the available planners.
+
+    ``rl:PATH`` loads the model file PATH, which unpickles code: name only files you trust.
+    """
+    if name.startswith("rl:"):
+        from planners.rl.policy import RLPolicy
+
+        return RLPolicy(name[3:])
     factory = PLANNERS.get(name)
     if factory is None:
-        key = "rl:PATH" if name.startswith("rl:") else name
-        later = f" ({PLANNED[key]} has not landed yet)" if key in PLANNED else ""
-        raise ValueError(f"planner: unknown {name!r}{later}; available: {', '.join(available())}")
+        raise ValueError(f"planner: unknown {name!r}; available: {', '.join(available())}, rl:PATH")
     return factory()

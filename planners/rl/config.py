@@ -1,0 +1,57 @@
+"""Validated hyper-parameters of the RL baseline (``configs/rl.yaml``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import Field
+
+from mirrorpark_env.config import ParkingTypeName, _Strict, default_config_path, read_yaml, validate
+
+
+class HerConfig(_Strict):
+    n_sampled_goal: int = Field(4, ge=1, le=32)
+    goal_selection_strategy: Literal["future", "final", "episode"] = "future"
+
+
+class CurriculumConfig(_Strict):
+    enabled: bool = True
+    start_fraction: float = Field(0.2, gt=0, le=1)
+    full_at: float = Field(0.6, gt=0, le=1)
+
+
+class EvalConfig(_Strict):
+    every_steps: int = Field(10_000, ge=1)
+    episodes: int = Field(30, ge=1, le=10_000)
+
+
+class RLConfig(_Strict):
+    algo: Literal["sac", "tqc"] = "sac"
+    total_steps: int = Field(200_000, ge=1)
+    max_episode_steps: int = Field(300, ge=1, le=1800)
+    learning_starts: int = Field(2000, ge=0)
+    buffer_size: int = Field(1_000_000, ge=1000)
+    batch_size: int = Field(256, ge=1)
+    learning_rate: float = Field(1e-3, gt=0, le=1)
+    gamma: float = Field(0.95, gt=0, le=1)
+    tau: float = Field(0.05, gt=0, le=1)
+    train_freq: int = Field(1, ge=1)
+    gradient_steps: int = Field(1, ge=1)
+    net_arch: list[int] = Field(default_factory=lambda: [256, 256], min_length=1)
+    her: HerConfig = HerConfig()
+    curriculum: CurriculumConfig = CurriculumConfig()
+    eval: EvalConfig = EvalConfig()
+    checkpoint_every_steps: int = Field(50_000, ge=1)
+    parking_types: list[ParkingTypeName] = Field(default_factory=lambda: ["parallel", "reverse", "angle"], min_length=1)
+    device: str = "auto"
+    torch_threads: int = Field(1, ge=1, le=256)
+    seed: int = 0
+
+
+def load_rl_config(path: str | Path | None = None, overrides: dict[str, Any] | None = None) -> RLConfig:
+    """``configs/rl.yaml`` (or ``path``) with ``overrides``, validated field by field."""
+    p = Path(path) if path is not None else default_config_path("rl.yaml")
+    data = read_yaml(p)
+    data.update({k: v for k, v in (overrides or {}).items() if v is not None})
+    return validate(RLConfig, data, source=p.name)

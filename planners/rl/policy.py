@@ -1,0 +1,70 @@
+"""A trained stable-baselines3 model as a policy (``--planner rl:PATH``).
+
+Loading a model file unpickles Python objects, which can run arbitrary code: load only
+files you trust, and only the one the user names (nothing here looks for models).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mirrorpark_env.scenario import ScenarioGeometry
+
+from ..base import PlanStats, Policy
+
+
+@lru_cache(maxsize=4)
+def load_model(path: str):
+    """The model at ``path`` (SAC or TQC, as its train.json or its contents say); cached per process."""
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"rl model: no such file {str(p)!r} (pass the model.zip that train-rl wrote)")
+    meta = p.with_name("train.json")
+    algo = json.loads(meta.read_text()).get("algo", "sac") if meta.exists() else None
+    try:
+        from stable_baselines3 import SAC
+    except ImportError:
+        raise ValueError("rl model: needs the rl extra: pip install torch==2.13.0 && pip install -e '.[rl]'") from None
+    if algo == "tqc" or algo is None:
+        try:
+            from sb3_contrib import TQC
+
+            if algo == "tqc":
+                return TQC.load(p, device="cpu")
+        except ImportError:
+            if algo == "tqc":
+                raise ValueError("rl model: a TQC model needs sb3-contrib (the rl extra)") from None
+    try:
+        return SAC.load(p, device="cpu")
+    except Exception as err:  # noqa: BLE001
+        if algo is None:
+            from sb3_contrib import TQC
+
+            return TQC.load(p, device="cpu")
+        raise ValueError(f"rl model: cannot load {str(p)!r}: {err}") from None
+
+
+class RLPolicy(Policy):
+    """Acts with a trained model's deterministic action; one ``PlanStats`` per decision."""
+
+    def __init__(self, path: str | Path) -> None:
+        super().__init__()
+        self.path = str(Path(path).resolve())
+        self.model = load_model(self.path)
+        self.name = f"rl:{path}"
+
+    def reset(self, geometry: ScenarioGeometry) -> None:
+        self.stats = []
+        self.gave_up = False
+
+    def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
+        t0 = time.perf_counter()
+        action, _ = self.model.predict(obs, deterministic=True)
+        self.stats.append(PlanStats(time.perf_counter() - t0, "ok"))
+        return np.asarray(action, dtype=np.float32)

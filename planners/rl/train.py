@@ -1,0 +1,173 @@
+"""Train the RL baseline: SAC or TQC with HER on MirrorPark-v0 (``mirrorpark train-rl``).
+
+Writes to ``out``: ``model.zip`` (the final policy), ``train.json`` (algorithm, config,
+steps, wall time, device, final evaluation), ``checkpoints/``, ``progress.csv`` and
+TensorBoard event files (``tb/``), ``evaluations.npz`` (the periodic ISO evaluations)
+and ``learning_curve.png``. Needs the ``rl`` extra (torch, stable-baselines3, sb3-contrib).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import mirrorpark_env  # noqa: F401  (registers MirrorPark-v0)
+from mirrorpark_env.grid import Grid
+
+from .config import RLConfig
+from .curriculum import CurriculumScenarios, FixedScenarios, LeanInfo
+
+
+def _algo_class(name: str):
+    if name == "sac":
+        from stable_baselines3 import SAC
+
+        return SAC
+    from sb3_contrib import TQC
+
+    return TQC
+
+
+def make_train_env(cfg: RLConfig, grid: Grid) -> gym.Env:
+    from stable_baselines3.common.monitor import Monitor
+
+    env = gym.make("MirrorPark-v0", max_episode_steps=cfg.max_episode_steps)
+    start = cfg.curriculum.start_fraction if cfg.curriculum.enabled else 1.0
+    return Monitor(LeanInfo(CurriculumScenarios(env, cfg.parking_types, level=start, grid=grid)))
+
+
+def make_eval_env(cfg: RLConfig, grid: Grid) -> gym.Env:
+    from stable_baselines3.common.monitor import Monitor
+
+    per_type = max(1, -(-cfg.eval.episodes // len(cfg.parking_types)))
+    cases = grid.sample(per_type, seed=cfg.seed + 1, types=tuple(cfg.parking_types))
+    return Monitor(FixedScenarios(gym.make("MirrorPark-v0"), cases[: cfg.eval.episodes]))
+
+
+def train(cfg: RLConfig, out: str | Path, progress: bool = True) -> dict[str, Any]:
+    """Train per ``cfg``, save everything under ``out``; return the summary of train.json."""
+    import torch
+    from stable_baselines3 import HerReplayBuffer
+    from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback, EvalCallback
+    from stable_baselines3.common.logger import Logger, make_output_format
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(cfg.torch_threads)
+    grid = Grid.from_config()
+    env = make_train_env(cfg, grid)
+    eval_env = make_eval_env(cfg, grid)
+    algo = _algo_class(cfg.algo)
+    model = algo(
+        "MultiInputPolicy",
+        env,
+        replay_buffer_class=HerReplayBuffer,
+        replay_buffer_kwargs=dict(
+            n_sampled_goal=cfg.her.n_sampled_goal,
+            goal_selection_strategy=cfg.her.goal_selection_strategy,
+            copy_info_dict=True,  # relabelled rewards keep the collision penalty
+        ),
+        learning_starts=cfg.learning_starts,
+        buffer_size=min(cfg.buffer_size, max(cfg.total_steps, 1000)),
+        batch_size=cfg.batch_size,
+        learning_rate=cfg.learning_rate,
+        gamma=cfg.gamma,
+        tau=cfg.tau,
+        train_freq=cfg.train_freq,
+        gradient_steps=cfg.gradient_steps,
+        policy_kwargs=dict(net_arch=list(cfg.net_arch)),
+        device=cfg.device,
+        seed=cfg.seed,
+        verbose=0,
+    )
+    formats = [make_output_format("csv", str(out))]  # progress.csv beside the model
+    if _has_tensorboard():
+        formats.append(make_output_format("tensorboard", str(out / "tb")))
+    model.set_logger(Logger(str(out), formats))
+
+    class Curriculum(BaseCallback):
+        def _on_step(self) -> bool:
+            if cfg.curriculum.enabled:
+                frac = min(1.0, self.num_timesteps / (cfg.curriculum.full_at * cfg.total_steps))
+                level = cfg.curriculum.start_fraction + (1 - cfg.curriculum.start_fraction) * frac
+                self.training_env.env_method("set_level", level)
+                self.logger.record("train/curriculum_level", level)
+            return True
+
+    callbacks = CallbackList([
+        Curriculum(),
+        CheckpointCallback(cfg.checkpoint_every_steps, str(out / "checkpoints"), name_prefix=cfg.algo),
+        EvalCallback(eval_env, n_eval_episodes=cfg.eval.episodes, eval_freq=cfg.eval.every_steps,
+                     log_path=str(out), deterministic=True, verbose=0),
+    ])  # fmt: skip
+    t0 = time.perf_counter()
+    model.learn(total_timesteps=cfg.total_steps, callback=callbacks, progress_bar=progress and _has_rich())
+    wall = time.perf_counter() - t0
+    model.save(out / "model.zip")
+    curve = learning_curve(out)
+    summary = {
+        "algo": cfg.algo,
+        "total_steps": cfg.total_steps,
+        "wall_time_s": round(wall, 1),
+        "steps_per_s": round(cfg.total_steps / wall, 1),
+        "device": str(model.device),
+        "parking_types": list(cfg.parking_types),
+        "final_eval_success_rate": curve[-1][1] if curve else None,
+        "config": cfg.model_dump(),
+    }
+    (out / "train.json").write_text(json.dumps(summary, indent=2))
+    if curve:
+        plot_learning_curve(out)
+    return summary
+
+
+def learning_curve(out: str | Path) -> list[tuple[int, float, float]]:
+    """(timestep, ISO success rate, mean return) of each periodic evaluation."""
+    p = Path(out) / "evaluations.npz"
+    if not p.exists():
+        return []
+    d = np.load(p)
+    succ = d["successes"].mean(axis=1) if "successes" in d and d["successes"].size else np.full(len(d["timesteps"]), np.nan)
+    return [(int(t), float(s), float(r)) for t, s, r in zip(d["timesteps"], succ, d["results"].mean(axis=1))]
+
+
+def plot_learning_curve(out: str | Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    curve = learning_curve(out)
+    t = [c[0] for c in curve]
+    fig, ax = plt.subplots(1, 2, figsize=(9, 3.2))
+    ax[0].plot(t, [100 * c[1] for c in curve], marker="o")
+    ax[0].set(xlabel="environment steps", ylabel="ISO success [%]", title="evaluation success", ylim=(-2, 102))
+    ax[1].plot(t, [c[2] for c in curve], marker="o")
+    ax[1].set(xlabel="environment steps", ylabel="mean return", title="evaluation return")
+    fig.tight_layout()
+    path = Path(out) / "learning_curve.png"
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def _has_tensorboard() -> bool:
+    try:
+        import tensorboard  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _has_rich() -> bool:
+    try:
+        import rich  # noqa: F401
+        import tqdm  # noqa: F401
+    except ImportError:
+        return False
+    return True
