@@ -21,33 +21,28 @@ from ..base import PlanStats, Policy
 
 @lru_cache(maxsize=4)
 def load_model(path: str):
-    """The model at ``path`` (SAC or TQC, as its train.json or its contents say); cached per process."""
+    """The model at ``path`` (SAC or TQC, as its train.json says); cached per process."""
     p = Path(path)
     if not p.is_file():
         raise ValueError(f"rl model: no such file {str(p)!r} (pass the model.zip that train-rl wrote)")
     meta = p.with_name("train.json")
-    algo = json.loads(meta.read_text()).get("algo", "sac") if meta.exists() else None
+    algo = json.loads(meta.read_text()).get("algo", "sac") if meta.exists() else "sac"
     try:
-        from stable_baselines3 import SAC
+        import gymnasium as gym
+
+        import mirrorpark_env  # noqa: F401
+
+        if algo == "tqc":
+            from sb3_contrib import TQC as Algo
+        else:
+            from stable_baselines3 import SAC as Algo
     except ImportError:
         raise ValueError("rl model: needs the rl extra: pip install torch==2.13.0 && pip install -e '.[rl]'") from None
-    if algo == "tqc" or algo is None:
-        try:
-            from sb3_contrib import TQC
-
-            if algo == "tqc":
-                return TQC.load(p, device="cpu")
-        except ImportError:
-            if algo == "tqc":
-                raise ValueError("rl model: a TQC model needs sb3-contrib (the rl extra)") from None
     try:
-        return SAC.load(p, device="cpu")
-    except Exception as err:  # noqa: BLE001
-        if algo is None:
-            from sb3_contrib import TQC
-
-            return TQC.load(p, device="cpu")
-        raise ValueError(f"rl model: cannot load {str(p)!r}: {err}") from None
+        # A model trained with HER needs an env to rebuild its buffer; only its spaces are used.
+        return Algo.load(p, env=gym.make("MirrorPark-v0"), device="cpu")
+    except Exception as err:  # noqa: BLE001  (a bad file: one clear line)
+        raise ValueError(f"rl model: cannot load {str(p)!r} as {algo.upper()}: {err}") from None
 
 
 class RLPolicy(Policy):
