@@ -110,7 +110,7 @@ def fig_plan_time(df, planners, out: Path) -> Path:
     fig, ax = plt.subplots(figsize=(6, 3.5))
     for p in planners:
         d = df[df["planner"] == p]
-        times = [t for ts in d["plan_times_ms"].dropna() for t in (ts or [])]
+        times = [t for ts in d["plan_times_ms"].dropna() for t in (() if ts is None else ts)]
         if times:
             ax.hist(np.log10(np.maximum(times, 1e-3)), bins=40, alpha=0.6, label=p)
     ax.axvline(np.log10(74.0), color="k", ls="--", lw=1, label="paper mean (74 ms)")

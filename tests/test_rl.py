@@ -42,14 +42,16 @@ def test_rl_config_rejects_bad_values_naming_the_field(tmp_path):
         load_rl_config(overrides={"gamma": 1.5})
 
 
-def test_her_relabelled_rewards_are_the_envs_compute_reward(require_module):
+def test_her_relabelled_rewards_are_the_envs_compute_reward(require_module, tmp_path):
     require_module("stable_baselines3")
     from stable_baselines3 import SAC, HerReplayBuffer
+    from stable_baselines3.common.logger import configure
 
     env = LeanInfo(CurriculumScenarios(gym.make("MirrorPark-v0", max_episode_steps=50), ["parallel"], level=1.0))
     model = SAC("MultiInputPolicy", env, replay_buffer_class=HerReplayBuffer,
                 replay_buffer_kwargs=dict(n_sampled_goal=4, goal_selection_strategy="future", copy_info_dict=True),
                 learning_starts=10_000, buffer_size=1000, seed=0, device="cpu")  # fmt: skip
+    model.set_logger(configure(str(tmp_path), ["csv"]))  # not SB3's default folder in /tmp
     model.learn(300)  # only collects: learning starts later
     buf = model.replay_buffer
     batch = buf.sample(256)
