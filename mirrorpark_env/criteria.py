@@ -80,6 +80,11 @@ class SuccessCriteria:
         self._body = [tuple(b) for b in self.vehicle.body_corners().tolist()]
         self._edges = [(hp.normal[0], hp.normal[1], hp.offset) for _, hp in geometry.slot_edges]
 
+    @property
+    def min_margin(self) -> float:
+        """The smallest margin success allows (parallel: strictly more than this)."""
+        return self._min_margin
+
     def edge_distances(self, corners: np.ndarray) -> np.ndarray:
         """Signed distance of each corner to each slot edge, (4 corners, 4 edges)."""
         return corners @ self._normals.T - self._offsets

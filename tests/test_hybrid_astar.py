@@ -10,6 +10,7 @@ import pytest
 import shapely
 
 import mirrorpark_env  # noqa: F401
+from fixed_cases import EASY_CASES
 from mirrorpark_env import Scenario, VehicleParams
 from mirrorpark_env.vehicle import footprint
 from planners.base import run_episode
@@ -98,13 +99,7 @@ def test_a_path_never_comes_near_an_obstacle(case_id):
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "case_id",
-    [
-        "parallel_rw4.00_sl7.32_sw2.50_th+10_y1.30",
-        "reverse_rw7.00_sl4.82_sw2.32_th+40_y3.00",
-        "angle_rw3.50_sl4.82_sw2.77_th+10_y1.30",
-        "parallel_rw3.50_sl4.82_sw2.50_th+0_y1.70",  # tight, with switches
-    ],
+    "case_id", [*EASY_CASES, "parallel_rw3.50_sl4.82_sw2.50_th+0_y1.70"]  # the last: tight, with switches
 )
 def test_easy_cases_park(case_id):
     env = gym.make("MirrorPark-v0").unwrapped

@@ -10,6 +10,7 @@ import pytest
 import scipy.sparse as sp
 
 import mirrorpark_env  # noqa: F401
+from fixed_cases import EASY_CASES
 from mirrorpark_env import Scenario, VehicleParams, VehicleState
 from planners.base import run_episode
 from planners.mirror.mirror_line import (
@@ -164,13 +165,7 @@ def test_piqp_backend_refills_one_pattern():
 # ---------------------------------------------------------------- closed loop
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "case_id",
-    [
-        "parallel_rw4.00_sl7.32_sw2.50_th+10_y1.30",
-        "reverse_rw7.00_sl4.82_sw2.32_th+40_y3.00",
-        "angle_rw3.50_sl4.82_sw2.77_th+10_y1.30",
-        "parallel_rw4.50_sl6.00_sw2.50_th+0_y2.00",  # needs switches
-    ],
+    "case_id", [*EASY_CASES, "parallel_rw4.50_sl6.00_sw2.50_th+0_y2.00"]  # the last: needs switches
 )
 def test_easy_cases_park(case_id):
     env = gym.make("MirrorPark-v0").unwrapped

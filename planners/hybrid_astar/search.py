@@ -211,7 +211,7 @@ class HybridAStar:
         v = self.criteria.verdict(x, y, th, 0.0, 0.0, False)
         if not v.inside_slot or abs(v.heading_error) > self.goal_heading:
             return False
-        need = self.criteria._min_margin + self.cfg.goal_margin
+        need = self.criteria.min_margin + self.cfg.goal_margin
         return min(v.margins.values()) >= need
 
     def _analytic(self, pose, goal) -> np.ndarray | None:
