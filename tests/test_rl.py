@@ -67,21 +67,25 @@ def test_her_relabelled_rewards_are_the_envs_compute_reward(require_module, tmp_
     assert (r1 < r0).all()
 
 @pytest.mark.slow
-def test_a_short_training_run_saves_a_model_that_acts_as_a_policy(tmp_path, require_module):
+@pytest.mark.parametrize("algo", ["sac", "tqc"])
+def test_a_short_training_run_saves_a_model_that_acts_as_a_policy(tmp_path, require_module, algo):
     require_module("stable_baselines3")
     require_module("torch")
+    if algo == "tqc":
+        require_module("sb3_contrib")
     from evaluation.registry import make_policy
     from planners.rl.train import train
 
-    cfg = load_rl_config(overrides=dict(total_steps=300, learning_starts=100, batch_size=32, net_arch=[32, 32],
+    cfg = load_rl_config(overrides=dict(algo=algo, total_steps=300, learning_starts=100, batch_size=32, net_arch=[32, 32],
                                         max_episode_steps=100, checkpoint_every_steps=150,
                                         eval={"every_steps": 300, "episodes": 1}))  # fmt: skip
     summary = train(cfg, tmp_path, progress=False)
     for name in ("model.zip", "train.json", "progress.csv", "evaluations.npz", "learning_curve.png"):
         assert (tmp_path / name).is_file(), name
-    assert list((tmp_path / "checkpoints").glob("sac_*_steps.zip"))
+    assert list((tmp_path / "checkpoints").glob(f"{algo}_*_steps.zip"))
     assert json.loads((tmp_path / "train.json").read_text())["total_steps"] == 300 == summary["total_steps"]
     policy = make_policy(f"rl:{tmp_path / 'model.zip'}")
+    assert type(policy.model).__name__ == algo.upper()
     env = gym.make("MirrorPark-v0").unwrapped
     info, steps = run_episode(env, policy, "parallel_rw4.00_sl7.32_sw2.50_th+10_y1.30", max_steps=30)
     assert steps == 30 or info["collision"] or info["is_success"]
