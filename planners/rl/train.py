@@ -99,14 +99,28 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True) -> dict[str, An
                 self.logger.record("train/curriculum_level", level)
             return True
 
+    class Progress(BaseCallback):  # tqdm (a core dependency), not SB3's rich bar
+        def _on_training_start(self) -> None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=cfg.total_steps, desc=f"train-rl {cfg.algo}", unit="step", disable=not progress)
+
+        def _on_step(self) -> bool:
+            self.bar.update(self.model.num_timesteps - self.bar.n)
+            return True
+
+        def _on_training_end(self) -> None:
+            self.bar.close()
+
     callbacks = CallbackList([
         Curriculum(),
+        Progress(),
         CheckpointCallback(cfg.checkpoint_every_steps, str(out / "checkpoints"), name_prefix=cfg.algo),
         EvalCallback(eval_env, n_eval_episodes=cfg.eval.episodes, eval_freq=cfg.eval.every_steps,
                      log_path=str(out), deterministic=True, verbose=0),
     ])  # fmt: skip
     t0 = time.perf_counter()
-    model.learn(total_timesteps=cfg.total_steps, callback=callbacks, progress_bar=progress and _has_rich())
+    model.learn(total_timesteps=cfg.total_steps, callback=callbacks)
     wall = time.perf_counter() - t0
     model.save(out / "model.zip")
     curve = learning_curve(out)
@@ -159,15 +173,6 @@ def plot_learning_curve(out: str | Path) -> Path:
 def _has_tensorboard() -> bool:
     try:
         import tensorboard  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def _has_rich() -> bool:
-    try:
-        import rich  # noqa: F401
-        import tqdm  # noqa: F401
     except ImportError:
         return False
     return True
