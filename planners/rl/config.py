@@ -49,6 +49,17 @@ class RLConfig(_Strict):
     seed: int = 0
 
 
+def algo_class(name: str):
+    """The stable-baselines3 class of ``name`` ("sac" or "tqc"); imports the rl extra."""
+    if name == "tqc":
+        from sb3_contrib import TQC
+
+        return TQC
+    from stable_baselines3 import SAC
+
+    return SAC
+
+
 def load_rl_config(path: str | Path | None = None, overrides: dict[str, Any] | None = None) -> RLConfig:
     """``configs/rl.yaml`` (or ``path``) with ``overrides``, validated field by field."""
     p = Path(path) if path is not None else default_config_path("rl.yaml")

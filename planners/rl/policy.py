@@ -32,10 +32,9 @@ def load_model(path: str):
 
         import mirrorpark_env  # noqa: F401
 
-        if algo == "tqc":
-            from sb3_contrib import TQC as Algo
-        else:
-            from stable_baselines3 import SAC as Algo
+        from .config import algo_class
+
+        Algo = algo_class(algo)
     except ImportError:
         raise ValueError("rl model: needs the rl extra: pip install torch==2.13.0 && pip install -e '.[rl]'") from None
     try:

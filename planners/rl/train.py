@@ -19,18 +19,8 @@ import numpy as np
 import mirrorpark_env  # noqa: F401  (registers MirrorPark-v0)
 from mirrorpark_env.grid import Grid
 
-from .config import RLConfig
+from .config import RLConfig, algo_class
 from .curriculum import CurriculumScenarios, FixedScenarios, LeanInfo
-
-
-def _algo_class(name: str):
-    if name == "sac":
-        from stable_baselines3 import SAC
-
-        return SAC
-    from sb3_contrib import TQC
-
-    return TQC
 
 
 def make_train_env(cfg: RLConfig, grid: Grid) -> gym.Env:
@@ -62,7 +52,7 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True) -> dict[str, An
     grid = Grid.from_config()
     env = make_train_env(cfg, grid)
     eval_env = make_eval_env(cfg, grid)
-    algo = _algo_class(cfg.algo)
+    algo = algo_class(cfg.algo)
     model = algo(
         "MultiInputPolicy",
         env,
@@ -136,7 +126,7 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True) -> dict[str, An
     }
     (out / "train.json").write_text(json.dumps(summary, indent=2))
     if curve:
-        plot_learning_curve(out)
+        plot_learning_curve(curve, out / "learning_curve.png")
     return summary
 
 
@@ -150,13 +140,13 @@ def learning_curve(out: str | Path) -> list[tuple[int, float, float]]:
     return [(int(t), float(s), float(r)) for t, s, r in zip(d["timesteps"], succ, d["results"].mean(axis=1))]
 
 
-def plot_learning_curve(out: str | Path) -> Path:
+def plot_learning_curve(curve: list[tuple[int, float, float]], path: str | Path) -> Path:
+    """Success rate and mean return of the periodic evaluations against steps."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    curve = learning_curve(out)
     t = [c[0] for c in curve]
     fig, ax = plt.subplots(1, 2, figsize=(9, 3.2))
     ax[0].plot(t, [100 * c[1] for c in curve], marker="o")
@@ -164,10 +154,9 @@ def plot_learning_curve(out: str | Path) -> Path:
     ax[1].plot(t, [c[2] for c in curve], marker="o")
     ax[1].set(xlabel="environment steps", ylabel="mean return", title="evaluation return")
     fig.tight_layout()
-    path = Path(out) / "learning_curve.png"
     fig.savefig(path, dpi=120)
     plt.close(fig)
-    return path
+    return Path(path)
 
 
 def _has_tensorboard() -> bool:
