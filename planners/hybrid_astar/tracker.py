@@ -70,7 +70,7 @@ class PathTracker:
 
     def command(self, st: VehicleState) -> tuple[float, float]:
         """Acceleration and steering commands [m/s^2, rad] for the measured state."""
-        p, cfg, car = self.params, self.cfg, self.params
+        p, cfg = self.params, self.cfg
         if self.done:
             return self._hold(st, st.delta)
         i0, i1 = self.segments[self.seg]
@@ -123,13 +123,15 @@ class PathTracker:
         self.phase = "steer"
         return self.command(st)
 
+    def _clip_steer(self, delta: float) -> float:
+        return max(-self.params.max_steer, min(self.params.max_steer, delta))
+
     def _steer_for(self, kappa: float) -> float:
-        p = self.params
-        return max(-p.max_steer, min(p.max_steer, math.atan(p.wheelbase * kappa)))
+        return self._clip_steer(math.atan(self.params.wheelbase * kappa))
 
     def _hold(self, st: VehicleState, delta: float) -> tuple[float, float]:
         """Brake to a stand (or stay there) while steering to ``delta``."""
-        return hold_command(self.params, st), max(-self.params.max_steer, min(self.params.max_steer, delta))
+        return hold_command(self.params, st), self._clip_steer(delta)
 
 
 def hold_command(p: VehicleParams, st: VehicleState) -> float:
