@@ -33,6 +33,9 @@ from mirrorpark_env.scenario import ParkingType, ScenarioGeometry
 from mirrorpark_env.vehicle import TruthModel, VehicleState
 
 from ..base import PlanStats
+from ..hybrid_astar.search import Path
+from ..hybrid_astar.tracker import PathTracker, TrackerConfig
+from .guide import Guide, GuideSearch
 from .mirror_line import MirrorLine, mirror_line
 from .model import NU, NX, PlanningModel
 from .solvers import INACTIVE, QP, BranchAndBound, Disjunction, PiqpQP
@@ -72,6 +75,10 @@ class MirrorPlannerConfig:
     seed_swings: tuple[float, ...] = (-0.8, -0.4, 0.4, 0.8)  # [rad] heading excursions tried as seeds
     refine_candidates: int = 2  # candidates refined by SCP after the seed search
     time_limit_s: float = 0.5
+    guide: bool = True  # seed each plan from a geometric guide (guide.py); SCP only
+    guide_iterations: int = 3  # SCP rounds on a guided candidate
+    seed_speed: float = 1.5  # [m/s] cruise speed of the guided seed rollout
+    seed_accel: float = 1.5  # [m/s^2] its acceleration and planned deceleration
 
 
 @dataclass(frozen=True)
@@ -110,6 +117,9 @@ class MirrorPlanner:
         self.qp_backend = PiqpQP()
         self.miqp = miqp or BranchAndBound(self.qp_backend, cfg.node_limit, cfg.time_limit_s)
         self.line = mirror_line(geometry, margin=cfg.mirror_margin)
+        self._goal = np.array(geometry.target, float)  # the goal of the plan being made
+        self._guide: GuideSearch | None = None  # built by the first call (its time counts)
+        self._tracker_cfg = TrackerConfig(cruise_speed=cfg.seed_speed, accel=cfg.seed_accel, decel=cfg.seed_accel)
         self._faces, self._vertices = _useful_features(geometry)
         p = self.p
         hw = 0.5 * p.width
@@ -163,6 +173,11 @@ class MirrorPlanner:
         """
         t0 = time.perf_counter()
         xi0 = state.as_array()
+        self._goal = np.array(self.g.target, float)
+        if self.cfg.guide and self.cfg.linearisation == "scp" and candidates is None:
+            plan = self._plan_guided(xi0, t0)
+            if plan is not None:
+                return plan
         if not self.line.fixed:  # Eqs. (5), (6): bound by the heading change still to go
             psi = min(abs(_unwrap_near(self.g.target[2], state.theta) - state.theta), math.pi / 2)
             self.line = mirror_line(self.g, psi=psi, margin=self.cfg.mirror_margin)
@@ -190,9 +205,71 @@ class MirrorPlanner:
             best, status = partial, "partial"  # no full plan progresses: go as far as is safe
         stats = PlanStats(time.perf_counter() - t0, status, totals["iterations"], totals["qp_solves"],
                           totals["nodes"], best.cost if best else math.nan,
-                          {"candidates": tried, "stay_cost": stay})  # fmt: skip
+                          {"candidates": tried, "stay_cost": stay, "guided": False,
+                           **self._guide_detail})  # fmt: skip
         self.last_stats = stats
         return replace(best, stats=stats) if best is not None else None
+
+    # ----------------------------------------------------------------- guided
+    _guide_detail: dict = {}
+
+    def _plan_guided(self, xi0: np.ndarray, t0: float) -> Plan | None:
+        """One plan along the guide's next switch: seed from tracking the guide, then SCP
+        toward the mirrored goal (the guide's pose after its second gear segment, or the
+        target). None when there is no guide or no clear plan along it."""
+        if self._guide is None:
+            self._guide = GuideSearch(self.g)
+        guide = self._guide.search(xi0[:3])
+        self._guide_detail = {"guide_cost": guide.cost if guide else math.inf}
+        if guide is None:
+            return None
+        cand, seed, goal = self._guided_seed(xi0, guide)
+        self._goal = goal
+        plan, st = self._solve_candidate(xi0, cand, seed, iterations=self.cfg.guide_iterations, free_switch=True)
+        if plan is None:
+            self._goal = np.array(self.g.target, float)
+            return None
+        stats = PlanStats(time.perf_counter() - t0, "ok", st["iterations"], st["qp_solves"], st["nodes"], plan.cost,
+                          {"candidates": [(cand, round(plan.cost, 3), st["status"])], "guided": True,
+                           "goal": tuple(round(float(v), 3) for v in goal), **self._guide_detail})  # fmt: skip
+        self.last_stats = stats
+        return replace(plan, stats=stats)
+
+    def _guided_seed(self, xi0: np.ndarray, guide: Guide):
+        """(candidate, real rollout at half steps, goal pose) from tracking the guide's
+        first two gear segments on the planning model, cut so that the car stands by N."""
+        poses = guide.path.poses
+        end = guide.first_switch()
+        for _ in range(3):
+            path = Path.from_poses(poses[: end + 1])
+            real, segs, reached = self._track(xi0, path)
+            if segs[-1] < 0 or reached[-1] >= end:  # stood at the portion's end within N
+                break
+            back = max(0, self.N - 20)  # cut where the car was 2 s before the horizon
+            end = max(reached[back], 2)
+        gear = path.direction[1]
+        seg = np.asarray(segs)
+        s = int(np.argmax(seg >= 1)) if (seg >= 1).any() else None
+        if s is not None and (s < 2 or s > self.N - 2):
+            s = None
+        goal = self._goal.copy() if end >= len(poses) - 1 else poses[end].copy()
+        goal[2] = _unwrap_near(goal[2], xi0[XI_TH])
+        return Candidate(int(gear), s), real, goal
+
+    def _track(self, xi0: np.ndarray, path: Path):
+        """Roll the planning model out under a path tracker for N steps: the half-step real
+        states, the tracker's segment per control step (-1 once done), the pose index reached."""
+        tracker = PathTracker(path, self.p, self._tracker_cfg)
+        state = xi0.copy()
+        out, segs, reached = [xi0], [0], [0]
+        for _ in range(self.N):
+            a, d = tracker.command(VehicleState(*state))
+            sub = self.coarse.step(state, a, d)[:, :6]
+            out.extend(sub)
+            state = sub[-1]
+            segs.append(-1 if tracker.done else tracker.seg)
+            reached.append(tracker.j)
+        return np.array(out), segs, reached
 
     @property
     def first_direction(self) -> int:
@@ -298,7 +375,8 @@ class MirrorPlanner:
                 out.append((cand, real))
         return out
 
-    def _solve_candidate(self, xi0: np.ndarray, cand: Candidate, seed: np.ndarray | None = None):
+    def _solve_candidate(self, xi0: np.ndarray, cand: Candidate, seed: np.ndarray | None = None,
+                         iterations: int | None = None, free_switch: bool = False):
         """SCP with Algorithm I inside, for one (direction, switch step) candidate.
 
         Each round linearises about the reference rollout, adds the disjunctive obstacle
@@ -308,7 +386,7 @@ class MirrorPlanner:
         is raised and the round repeats. Without improvement possible, the search stops.
         """
         cfg, N = self.cfg, self.N
-        theta_t = _unwrap_near(self.g.target[2], xi0[XI_TH])
+        theta_t = _unwrap_near(self._goal[2], xi0[XI_TH])
         P, c = self._cost(cand, theta_t)
         theta_set: dict[tuple[int, int], None] = {}
         best: Plan | None = None
@@ -327,7 +405,7 @@ class MirrorPlanner:
             if not self._collisions(ref_real) and self._truth_safe(xi0, self._real_commands(ref_u, cand)):
                 best = self._make_plan(cand, ref_u, ref_real, theta_t, True)  # the seed is a plan too
         trust_scale = 1.0
-        for it in range(cfg.max_iterations):
+        for it in range(cfg.max_iterations if iterations is None else iterations):
             st["iterations"] += 1
             if not paper:
                 for i, k in self._collisions(ref_real):  # Algorithm I
@@ -342,7 +420,7 @@ class MirrorPlanner:
                 P_it = P
             qp, disj, active, preferred = self._build(
                 xi0, cand, theta_t, P_it, c, lin, ref_real, theta_set, not paper,
-                mirror=cand.direction == self.first_direction, trust_scale=trust_scale,
+                mirror=cand.direction == self.first_direction and not free_switch, trust_scale=trust_scale,
             )
             if disj:
                 res = self.miqp.solve(qp, disj, active, preferred)
@@ -406,7 +484,7 @@ class MirrorPlanner:
         """P, c of sum w * residual^2 (piqp: 1/2 z'Pz + c'z)."""
         cfg, N = self.cfg, self.N
         kappa = 1.0 if cand.switch is not None else 0.0
-        tx, ty, _ = self.g.target
+        tx, ty, _ = self._goal
         T = ((1 - 2 * kappa) * tx, (1 - 2 * kappa) * ty)  # residual = p_i - 2 kappa S - T
         rows, cols, vals, k0, w = [], [], [], [], []
         r = 0
@@ -667,7 +745,7 @@ class MirrorPlanner:
     def _true_cost(self, real: np.ndarray, theta_t: float) -> tuple[float, float, float]:
         """(cost, position error, heading error) of real states at the control steps."""
         cfg = self.cfg
-        tx, ty, _ = self.g.target
+        tx, ty, _ = self._goal
         pos_err = float(np.hypot(real[-1, 0] - tx, real[-1, 1] - ty))
         th_err = float(abs(real[-1, 2] - theta_t))
         run = float((np.hypot(real[1:, 0] - tx, real[1:, 1] - ty) ** 2).sum()) * cfg.w_position * cfg.dt

@@ -50,7 +50,7 @@ class MirrorPolicy(Policy):
         self.plans: list[Plan] = []
         self.gave_up = False
         self._failures = 0
-        self._best_stay = math.inf
+        self._best = {"guide_cost": math.inf, "stay_cost": math.inf}
         self._since_best = 0
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
@@ -87,9 +87,12 @@ class MirrorPolicy(Policy):
             return
         self._failures = 0
         self.stats.append(plan.stats)
-        stay = plan.stats.detail.get("stay_cost", math.inf)
-        if stay < 0.99 * self._best_stay:
-            self._best_stay, self._since_best = stay, 0
+        # Progress: the guide's cost to go (guided plans), else the cost of standing still.
+        detail = plan.stats.detail
+        key = "guide_cost" if detail.get("guided") else "stay_cost"
+        measure = detail.get(key, math.inf)
+        if measure < 0.99 * self._best[key]:
+            self._best[key], self._since_best = measure, 0
         else:
             self._since_best += 1
         if len(self.stats) >= self.max_plans or self._since_best >= self.patience:

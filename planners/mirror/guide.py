@@ -1,0 +1,176 @@
+"""Geometric guides for the mirrored-target planner: where to switch, and how to get there.
+
+The paper's planner linearises about a fixed angle and lets the QP find the manoeuvre.
+From a standstill that reference holds no information about which way round the car must
+go, and the SCP then settles in the nearest local minimum (measured: a reverse-parking
+start just past a 2.4 m slot reversed into the slot's corner and stayed there). A guide
+supplies the manoeuvre's shape instead, built from the paper's own geometry:
+
+- the switch poses of the mirror line: Theorem 1's dark point for parallel parking (the
+  forward arc from there ends at the target) and, for reverse and angle parking, poses
+  on the slot's axis out in the road, from which the car reverses straight in;
+- Reeds-Shepp paths (ompl) from the car to a switch pose and from it to the target.
+
+The shortest clear combination (length, plus a penalty per direction switch) is the
+guide. The halves from the switch poses to the target do not depend on the car's pose:
+they are sampled and checked once per episode. A guide is only a reference: the plan
+itself comes from the QP toward the mirrored target and is checked exactly before use.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from mirrorpark_env.scenario import ParkingType, ScenarioGeometry
+
+from ..hybrid_astar.heuristic import ReedsShepp
+from ..hybrid_astar.search import Path
+from .mirror_line import parallel_dark_point
+
+
+@dataclass(frozen=True)
+class GuideConfig:
+    """Settings of the guide search (lengths in m, angles in rad)."""
+
+    steer_fraction: float = 0.9  # paths turn at this fraction of the curvature limit
+    sample_step: float = 0.1  # spacing of the fine collision check
+    coarse_step: float = 0.3  # spacing of the first, cheap check
+    gap: float = 0.04  # clearance every fine sample keeps to the obstacles
+    cusp_cost: float = 3.0  # [m] per direction switch
+    reverse_cost: float = 0.5  # extra cost per metre driven in reverse
+    max_checked: int = 24  # candidate paths checked per call
+    start_relief: float = 1.0  # near a start that is closer than ``gap``, keep its own gap
+
+    def __post_init__(self) -> None:
+        for name in ("steer_fraction", "sample_step", "coarse_step", "gap", "start_relief"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name}: must be a finite number > 0, got {v!r}")
+        if self.steer_fraction > 1:
+            raise ValueError(f"steer_fraction: must be in (0, 1], got {self.steer_fraction}")
+
+
+@dataclass(frozen=True, eq=False)
+class Guide:
+    """A clear path from the car to the target: poses, gears and its cost."""
+
+    path: Path
+    cost: float
+    via: int  # index of the switch pose used (-1: straight to the target)
+
+    def first_switch(self) -> int:
+        """Index of the pose after which the plan's one switch comes: the end of the second
+        gear segment (or of the path)."""
+        seg = self.path.segments()
+        return seg[min(1, len(seg) - 1)][1] if seg else len(self.path.poses) - 1
+
+
+class GuideSearch:
+    """Shortest clear Reeds-Shepp path from a pose to the target through a switch pose."""
+
+    def __init__(self, geometry: ScenarioGeometry, config: GuideConfig | None = None):
+        self.g = geometry
+        self.cfg = cfg = config or GuideConfig()
+        p = geometry.vehicle
+        self.rs = ReedsShepp(p.r_min / cfg.steer_fraction)
+        self.checker = geometry.checker
+        self.target = np.array(geometry.target, float)
+        self._tails: list[tuple[np.ndarray, np.ndarray, float]] = []  # via pose, samples to target, cost
+        for v in switch_poses(geometry, self.rs.radius):
+            tail = self.rs.sample(v, self.target, cfg.sample_step)
+            if self._clear(tail):
+                self._tails.append((v, tail, self._cost(tail)))
+        self.last_via = -1
+
+    # -- costs and checks -------------------------------------------------------------
+    def _cost(self, poses: np.ndarray) -> float:
+        path = Path.from_poses(poses)
+        ds = np.hypot(*np.diff(poses[:, :2], axis=0).T)
+        rev = float(ds[path.direction[1:] < 0].sum())
+        return float(ds.sum()) + self.cfg.reverse_cost * rev + self.cfg.cusp_cost * path.switches
+
+    def _gaps(self, poses: np.ndarray) -> np.ndarray:
+        return -self.checker.penetration(poses[:, 0], poses[:, 1], poses[:, 2]).max(axis=1)
+
+    def _clear(self, poses: np.ndarray, start_gap: float | None = None, gap: float | None = None) -> bool:
+        need = self.cfg.gap if gap is None else gap
+        gaps = self._gaps(poses)
+        if start_gap is not None and start_gap < need:  # a tight start: keep its own gap nearby
+            near = np.hypot(poses[:, 0] - poses[0, 0], poses[:, 1] - poses[0, 1]) < self.cfg.start_relief
+            return bool(np.all(gaps >= np.where(near, max(start_gap, 0.0) - 1e-6, need)))
+        return bool(np.all(gaps >= need))
+
+    # -- search -----------------------------------------------------------------------
+    def search(self, pose) -> Guide | None:
+        """The cheapest clear guide from ``pose`` (x, y, theta), or None."""
+        cfg = self.cfg
+        pose = np.asarray(pose, float)[:3]
+        start_gap = float(self._gaps(pose[None])[0])
+        # Lower bounds: Reeds-Shepp length to the switch pose plus the tail's cost.
+        options = [(self.rs.distance(pose, self.target), -1)]
+        options += [(self.rs.distance(pose, v) + c, k) for k, (v, _, c) in enumerate(self._tails)]
+        options.sort(key=lambda t: t[0])
+        best: Guide | None = None
+        checked = 0
+        for lb, k in options:
+            if best is not None and lb >= best.cost:
+                break
+            if checked >= cfg.max_checked:
+                break
+            goal = self.target if k < 0 else self._tails[k][0]
+            coarse = self.rs.sample(pose, goal, cfg.coarse_step)
+            if not self._clear(coarse, start_gap, gap=0.0):
+                continue
+            checked += 1
+            head = self.rs.sample(pose, goal, cfg.sample_step)
+            if not self._clear(head, start_gap):
+                continue
+            poses = head if k < 0 else np.concatenate([head, self._tails[k][1][1:]])
+            cost = self._cost(poses)
+            if best is None or cost < best.cost:
+                best = Guide(Path.from_poses(poses), cost, k)
+        if best is not None:
+            self.last_via = best.via
+        return best
+
+
+def switch_poses(g: ScenarioGeometry, radius: float) -> list[np.ndarray]:
+    """Candidate poses for the one direction switch of a plan, from the mirror line's geometry.
+
+    Parallel: Theorem 1's switch pose (the dark point: heading psi* at l* deeper than the
+    target, a forward arc of the guide's radius away) and shallower variants of it, each
+    also shifted along the slot. Reverse and angle: on the slot's axis, 0.5-6 m out of the
+    slot (heading the target's: the car reverses straight in from there), and the same
+    poses turned by +-0.4 and +-0.8 rad about the end of a reversing arc.
+    """
+    tx, ty, th = g.target
+    u = np.array([math.cos(th), math.sin(th)])
+    nrm = np.array([math.sin(th), -math.cos(th)])  # right of the target heading
+    out: list[np.ndarray] = []
+    if g.parking_type is ParkingType.PARALLEL:
+        psi_star, _ = parallel_dark_point(g.vehicle, g.scenario.slot_width)
+        for psi in {psi_star, 0.7 * psi_star, 0.4 * psi_star, 0.0}:
+            # Start of a right-hand forward arc (radius r, turning psi) that ends at the target.
+            along, lat = -radius * math.sin(psi), radius * (1.0 - math.cos(psi))
+            for shift in (0.0, -0.3, 0.3, -0.6):
+                xy = np.array([tx, ty]) + (along + shift) * u + lat * nrm
+                out.append(np.array([xy[0], xy[1], th + psi]))
+        return out
+    out_dir = u if u[1] > 0 else -u  # out of the slot, into the road
+    for L in np.arange(0.5, 6.01, 0.5):
+        base = np.array([tx, ty]) + L * out_dir
+        out.append(np.array([base[0], base[1], th]))
+        for psi in (-0.8, -0.4, 0.4, 0.8):
+            # Reversing from the switch pose along an arc of turn psi ends at ``base``,
+            # heading th: the switch pose lies a forward arc beyond it.
+            side = 1.0 if psi > 0 else -1.0
+            centre = base + side * radius * np.array([-u[1], u[0]])
+            ang = abs(psi)
+            rel = base - centre
+            c, s = math.cos(side * ang), math.sin(side * ang)
+            q = centre + np.array([c * rel[0] - s * rel[1], s * rel[0] + c * rel[1]])
+            out.append(np.array([q[0], q[1], th + side * ang]))
+    return out
