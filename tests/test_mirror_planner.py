@@ -187,3 +187,65 @@ def test_planner_failure_is_a_status_not_an_exception():
         if term or trunc:
             break
     assert policy.stats and all(isinstance(s.wall_time_s, float) for s in policy.stats)
+
+
+# ------------------------------------------------------------------------ guide
+def _shapely_gap(geometry, poses) -> float:
+    import shapely
+
+    from mirrorpark_env.vehicle import footprint
+
+    cars = shapely.polygons(footprint(geometry.vehicle, poses[:, 0], poses[:, 1], poses[:, 2]))
+    return min(float(shapely.distance(cars, shapely.Polygon(p)).min()) for p in geometry.obstacles.polygons)
+
+
+@pytest.mark.parametrize("case_id", EASY_CASES)
+def test_guide_runs_from_the_start_to_the_target_clear_of_obstacles(case_id):
+    """The guide joins start and target and every sample keeps its gap (checked by shapely)."""
+    from planners.mirror.guide import GuideSearch
+
+    env = gym.make("MirrorPark-v0").unwrapped
+    _, info = env.reset(options={"scenario": case_id})
+    g = info["geometry"]
+    search = GuideSearch(g)
+    s = g.start
+    guide = search.search((s.x, s.y, s.theta))
+    assert guide is not None
+    poses = guide.path.poses
+    assert np.allclose(poses[0], (s.x, s.y, s.theta))
+    assert np.allclose(poses[-1][:2], g.target[:2], atol=1e-6)
+    assert abs(math.remainder(poses[-1][2] - g.target[2], 2 * math.pi)) < 1e-6
+    steps = np.hypot(*np.diff(poses[:, :2], axis=0).T)
+    assert steps.max() <= search.cfg.sample_step + 1e-6
+    assert _shapely_gap(g, poses[1:]) >= search.cfg.gap - 1e-6
+
+
+def test_parallel_switch_pose_is_a_forward_arc_from_the_target():
+    """Theorem 1's switch pose: heading psi*, l* deeper than the target, one forward arc of
+    the guide's radius (length r psi*) before it."""
+    from planners.mirror.guide import GuideSearch, switch_poses
+
+    g = Scenario.from_degrees("parallel", 4.5, 7.0, 2.5, 0, 2.0).build()
+    search = GuideSearch(g)
+    r = search.rs.radius
+    psi, _ = parallel_dark_point(P, 2.5)
+    v = switch_poses(g, r)[0]
+    tx, ty, _ = g.target
+    assert v[2] == pytest.approx(psi)
+    assert ty - v[1] == pytest.approx(r * (1 - math.cos(psi)))
+    assert tx - v[0] == pytest.approx(r * math.sin(psi))
+    assert search.rs.distance(v, g.target) == pytest.approx(r * psi, abs=1e-6)
+
+
+def test_guided_plan_has_one_switch_standing_and_ends_at_rest():
+    env = gym.make("MirrorPark-v0").unwrapped
+    _, info = env.reset(options={"scenario": "reverse_rw6.00_sl4.82_sw2.37_th+0_y1.20"})
+    planner = MirrorPlanner(info["geometry"])
+    plan = planner.plan(info["vehicle_state"])
+    assert plan is not None and plan.stats.detail["guided"]
+    v = plan.states[:, 3]
+    moving = np.sign(v[np.abs(v) > 1e-3])
+    assert np.count_nonzero(np.diff(moving)) <= 1  # one plan, at most one direction switch
+    if plan.candidate.switch is not None:
+        assert abs(v[plan.candidate.switch]) < 1e-3
+    assert abs(v[-1]) < 0.05

@@ -59,7 +59,7 @@ class Guide:
 
     path: Path
     cost: float
-    via: int  # index of the switch pose used (-1: straight to the target)
+    via: int  # -1: straight to the target; 0: through a switch pose; 1: set up in the road first; 2: after a first arc
 
     def first_switch(self) -> int:
         """Index of the pose after which the plan's one switch comes: the end of the second
@@ -83,7 +83,41 @@ class GuideSearch:
             tail = self.rs.sample(v, self.target, cfg.sample_step)
             if self._clear(tail):
                 self._tails.append((v, tail, self._cost(tail)))
-        self.last_via = -1
+        self._road_tails: list[tuple[np.ndarray, np.ndarray, float]] | None = None  # built when first needed
+
+    def road_tails(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
+        """Poses in the road from which the car sets up the manoeuvre (parallel parking:
+        level with the slot's front neighbour), each with its cheapest clear tail."""
+        if self._road_tails is None:
+            self._road_tails = []
+            for r in road_poses(self.g):
+                best = self._connect(r, self._tails, limit=4)
+                if best is not None:
+                    self._road_tails.append((r, *best))
+        return self._road_tails
+
+    def _connect(self, pose, tails, limit: int, start_gap: float | None = None):
+        """Cheapest clear (samples, cost) from ``pose`` through one of ``tails``, checking at
+        most ``limit`` of them in order of their lower bound."""
+        cfg = self.cfg
+        options = sorted((self.rs.distance(pose, v) + c, k) for k, (v, _, c) in enumerate(tails))
+        best, checked = None, 0
+        for lb, k in options:
+            if (best is not None and lb >= best[1]) or checked >= limit:
+                break
+            v, tail, _ = tails[k]
+            coarse = self.rs.sample(pose, v, cfg.coarse_step)
+            if not self._clear(coarse, start_gap, gap=0.0):
+                continue
+            checked += 1
+            head = self.rs.sample(pose, v, cfg.sample_step)
+            if not self._clear(head, start_gap):
+                continue
+            poses = np.concatenate([head, tail[1:]])
+            cost = self._cost(poses)
+            if best is None or cost < best[1]:
+                best = (poses, cost)
+        return best
 
     # -- costs and checks -------------------------------------------------------------
     def _cost(self, poses: np.ndarray) -> float:
@@ -103,37 +137,88 @@ class GuideSearch:
             return bool(np.all(gaps >= np.where(near, max(start_gap, 0.0) - 1e-6, need)))
         return bool(np.all(gaps >= need))
 
+    def _first_moves(self, pose, start_gap: float) -> list[np.ndarray]:
+        """Clear arcs from ``pose``: both gears, full lock either way or straight, 1-3 m."""
+        step = self.cfg.sample_step
+        out = []
+        for gear in (1.0, -1.0):
+            for kappa in (1.0 / self.rs.radius, -1.0 / self.rs.radius, 0.0):
+                for length in (1.0, 2.0, 3.0):
+                    s = gear * np.arange(0.0, length + 1e-9, step)
+                    th = pose[2] + kappa * s
+                    if kappa:
+                        x = pose[0] + (np.sin(th) - math.sin(pose[2])) / kappa
+                        y = pose[1] - (np.cos(th) - math.cos(pose[2])) / kappa
+                    else:
+                        x, y = pose[0] + s * math.cos(pose[2]), pose[1] + s * math.sin(pose[2])
+                    arc = np.stack([x, y, th], axis=1)
+                    if self._clear(arc, start_gap):
+                        out.append(arc)
+        return out
+
+    def _arc(self, pose, gear: float, kappa: float, length: float) -> np.ndarray:
+        s = gear * np.arange(0.0, length + 1e-9, self.cfg.sample_step)
+        th = pose[2] + kappa * s
+        if kappa:
+            x = pose[0] + (np.sin(th) - math.sin(pose[2])) / kappa
+            y = pose[1] - (np.cos(th) - math.cos(pose[2])) / kappa
+        else:
+            x, y = pose[0] + s * math.cos(pose[2]), pose[1] + s * math.sin(pose[2])
+        return np.stack([x, y, th], axis=1)
+
+    def _turns(self, pose, start_gap: float, arcs: int = 4) -> list[np.ndarray]:
+        """Multi-point turns on the spot: full-lock arcs in alternating gears that keep
+        turning one way, each driven as far as it stays clear (at most a quarter turn);
+        every prefix ending after an arc is returned."""
+        k_max = 1.0 / self.rs.radius
+        out = []
+        for turn in (1.0, -1.0):
+            for first_gear in (1.0, -1.0):
+                q, acc = np.asarray(pose, float), [np.asarray(pose, float)[None]]
+                for n in range(arcs):
+                    gear = first_gear if n % 2 == 0 else -first_gear
+                    arc = self._arc(q, gear, turn * gear * k_max, 0.5 * math.pi * self.rs.radius)
+                    gaps = self._gaps(arc)
+                    need = np.full(len(arc), self.cfg.gap)
+                    if n == 0 and start_gap < self.cfg.gap:
+                        near = np.hypot(arc[:, 0] - arc[0, 0], arc[:, 1] - arc[0, 1]) < self.cfg.start_relief
+                        need = np.where(near, max(start_gap, 0.0) - 1e-6, need)
+                    bad = np.flatnonzero(gaps < need)
+                    stop = (bad[0] if len(bad) else len(arc)) - 1
+                    if stop < 2:
+                        break
+                    arc = arc[: stop + 1]
+                    acc.append(arc[1:])
+                    q = arc[-1]
+                    out.append(np.concatenate(acc))
+        return out
+
     # -- search -----------------------------------------------------------------------
     def search(self, pose) -> Guide | None:
         """The cheapest clear guide from ``pose`` (x, y, theta), or None."""
         cfg = self.cfg
         pose = np.asarray(pose, float)[:3]
         start_gap = float(self._gaps(pose[None])[0])
-        # Lower bounds: Reeds-Shepp length to the switch pose plus the tail's cost.
-        options = [(self.rs.distance(pose, self.target), -1)]
-        options += [(self.rs.distance(pose, v) + c, k) for k, (v, _, c) in enumerate(self._tails)]
-        options.sort(key=lambda t: t[0])
         best: Guide | None = None
-        checked = 0
-        for lb, k in options:
-            if best is not None and lb >= best.cost:
-                break
-            if checked >= cfg.max_checked:
-                break
-            goal = self.target if k < 0 else self._tails[k][0]
-            coarse = self.rs.sample(pose, goal, cfg.coarse_step)
-            if not self._clear(coarse, start_gap, gap=0.0):
-                continue
-            checked += 1
-            head = self.rs.sample(pose, goal, cfg.sample_step)
-            if not self._clear(head, start_gap):
-                continue
-            poses = head if k < 0 else np.concatenate([head, self._tails[k][1][1:]])
-            cost = self._cost(poses)
-            if best is None or cost < best.cost:
-                best = Guide(Path.from_poses(poses), cost, k)
-        if best is not None:
-            self.last_via = best.via
+        direct = self.rs.sample(pose, self.target, cfg.sample_step)
+        if self._clear(direct, start_gap):
+            best = Guide(Path.from_poses(direct), self._cost(direct), -1)
+        found = self._connect(pose, self._tails, cfg.max_checked, start_gap)
+        if found is not None and (best is None or found[1] < best.cost):
+            best = Guide(Path.from_poses(found[0]), found[1], 0)
+        if best is None:  # set up in the road first
+            found = self._connect(pose, self.road_tails(), cfg.max_checked, start_gap)
+            if found is not None:
+                best = Guide(Path.from_poses(found[0]), found[1], 1)
+        if best is None:  # an awkward start: first one arc (or a turn on the spot), then connect
+            tails = self._tails + self.road_tails()
+            for arc in self._first_moves(pose, start_gap) + self._turns(pose, start_gap):
+                found = self._connect(arc[-1], tails, 4)
+                if found is not None:
+                    poses = np.concatenate([arc, found[0][1:]])
+                    cost = self._cost(poses)
+                    if best is None or cost < best.cost:
+                        best = Guide(Path.from_poses(poses), cost, 2)
         return best
 
 
@@ -142,7 +227,7 @@ def switch_poses(g: ScenarioGeometry, radius: float) -> list[np.ndarray]:
 
     Parallel: Theorem 1's switch pose (the dark point: heading psi* at l* deeper than the
     target, a forward arc of the guide's radius away) and shallower variants of it, each
-    also shifted along the slot. Reverse and angle: on the slot's axis, 0.5-6 m out of the
+    also shifted along the slot and up to 0.3 m deeper. Reverse and angle: on the slot's axis, 0.5-6 m out of the
     slot (heading the target's: the car reverses straight in from there), and the same
     poses turned by +-0.4 and +-0.8 rad about the end of a reversing arc.
     """
@@ -156,8 +241,9 @@ def switch_poses(g: ScenarioGeometry, radius: float) -> list[np.ndarray]:
             # Start of a right-hand forward arc (radius r, turning psi) that ends at the target.
             along, lat = -radius * math.sin(psi), radius * (1.0 - math.cos(psi))
             for shift in (0.0, -0.3, 0.3, -0.6):
-                xy = np.array([tx, ty]) + (along + shift) * u + lat * nrm
-                out.append(np.array([xy[0], xy[1], th + psi]))
+                for deeper in (0.0, 0.15, 0.3):
+                    xy = np.array([tx, ty]) + (along + shift) * u + (lat + deeper) * nrm
+                    out.append(np.array([xy[0], xy[1], th + psi]))
         return out
     out_dir = u if u[1] > 0 else -u  # out of the slot, into the road
     for L in np.arange(0.5, 6.01, 0.5):
@@ -173,4 +259,28 @@ def switch_poses(g: ScenarioGeometry, radius: float) -> list[np.ndarray]:
             c, s = math.cos(side * ang), math.sin(side * ang)
             q = centre + np.array([c * rel[0] - s * rel[1], s * rel[0] + c * rel[1]])
             out.append(np.array([q[0], q[1], th + side * ang]))
+    return out
+
+
+def road_poses(g: ScenarioGeometry) -> list[np.ndarray]:
+    """Set-up poses in the road, heading along it (+X, the direction of travel).
+
+    Parallel: rear axle 0-4 m past the slot's front end, 0.9-2.1 m from the slot line
+    (the classic start of a parallel manoeuvre). Reverse and angle: 1-4 m past the slot's
+    centre, in the middle of the road and a metre either side of it.
+    """
+    p = g.vehicle
+    rw = g.road_width
+    hw = 0.5 * p.width
+    slot = np.asarray(g.slot)
+    out = []
+    if g.parking_type is ParkingType.PARALLEL:
+        x_end = float(slot[:, 0].max())
+        xs, ys = x_end + np.array([0.0, 0.75, 1.5, 2.25, 3.0, 4.0]), [0.9, 1.3, 1.7, 2.1]
+    else:
+        xc = float(slot[:, 0].mean())
+        xs, ys = xc + np.array([1.0, 2.0, 3.0, 4.0]), [0.5 * rw - 1.0, 0.5 * rw, 0.5 * rw + 1.0]
+    for y in ys:
+        if hw + 0.1 <= y <= rw - hw - 0.1:
+            out += [np.array([x, y, 0.0]) for x in xs]
     return out

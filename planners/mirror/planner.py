@@ -41,6 +41,7 @@ from .model import NU, NX, PlanningModel
 from .solvers import INACTIVE, QP, BranchAndBound, Disjunction, PiqpQP
 
 XI_X, XI_Y, XI_TH, XI_V, XI_A, XI_D = range(6)
+CHECK_MARGIN = 0.01  # [m] a planning-model rollout closer than this to an obstacle is not clear
 FLIP = np.diag([1.0, 1.0, 1.0, -1.0, -1.0, -1.0])  # planned <- real lag states at the switch
 TURN = math.inf  # seed mode: steer toward the target heading in both segments
 
@@ -76,7 +77,8 @@ class MirrorPlannerConfig:
     refine_candidates: int = 2  # candidates refined by SCP after the seed search
     time_limit_s: float = 0.5
     guide: bool = True  # seed each plan from a geometric guide (guide.py); SCP only
-    guide_iterations: int = 3  # SCP rounds on a guided candidate
+    guide_iterations: int = 2  # SCP rounds on a guided candidate
+    fallback: bool = False  # without a guide, the multi-start search of manoeuvre shapes
     seed_speed: float = 1.5  # [m/s] cruise speed of the guided seed rollout
     seed_accel: float = 1.5  # [m/s^2] its acceleration and planned deceleration
 
@@ -137,6 +139,8 @@ class MirrorPlanner:
         self.iS = self.n_states + NU * N
         self.nz = self.iS + 2
         self._dyn_pattern()
+        self._trust = self._trust_diag()
+        self._cost_cache: dict[int | None, tuple] = {}
         self.last_stats: PlanStats | None = None  # the latest call's, a failed one's too
 
     # --------------------------------------------------------------- indices
@@ -176,7 +180,11 @@ class MirrorPlanner:
         self._goal = np.array(self.g.target, float)
         if self.cfg.guide and self.cfg.linearisation == "scp" and candidates is None:
             plan = self._plan_guided(xi0, t0)
-            if plan is not None:
+            if plan is not None or not self.cfg.fallback:
+                if plan is None:
+                    found = math.isfinite(self._guide_detail.get("guide_cost", math.inf))
+                    self.last_stats = PlanStats(time.perf_counter() - t0, "infeasible" if found else "no_guide",
+                                                detail=self._guide_detail)  # fmt: skip
                 return plan
         if not self.line.fixed:  # Eqs. (5), (6): bound by the heading change still to go
             psi = min(abs(_unwrap_near(self.g.target[2], state.theta) - state.theta), math.pi / 2)
@@ -226,10 +234,13 @@ class MirrorPlanner:
         cand, seed, goal = self._guided_seed(xi0, guide)
         self._goal = goal
         plan, st = self._solve_candidate(xi0, cand, seed, iterations=self.cfg.guide_iterations, free_switch=True)
+        status = "ok"
+        if plan is None and st.get("partial") is not None:  # go along the guide as far as is safe
+            plan, status = st["partial"], "partial"
         if plan is None:
             self._goal = np.array(self.g.target, float)
             return None
-        stats = PlanStats(time.perf_counter() - t0, "ok", st["iterations"], st["qp_solves"], st["nodes"], plan.cost,
+        stats = PlanStats(time.perf_counter() - t0, status, st["iterations"], st["qp_solves"], st["nodes"], plan.cost,
                           {"candidates": [(cand, round(plan.cost, 3), st["status"])], "guided": True,
                            "goal": tuple(round(float(v), 3) for v in goal), **self._guide_detail})  # fmt: skip
         self.last_stats = stats
@@ -390,6 +401,7 @@ class MirrorPlanner:
         P, c = self._cost(cand, theta_t)
         theta_set: dict[tuple[int, int], None] = {}
         best: Plan | None = None
+        clear_plans: list[Plan] = []  # clear on the planning model; verified on the truth model at the end
         st = {"iterations": 0, "qp_solves": 0, "nodes": 0, "status": "failed"}
         paper = cfg.linearisation == "paper"
         if paper:
@@ -402,8 +414,8 @@ class MirrorPlanner:
             ref_real = seed if seed is not None else self._seed(xi0, cand)
             ref_u = self._planned_controls(ref_real, cand)
             ref_merit = self._merit(ref_real, theta_t)
-            if not self._collisions(ref_real) and self._truth_safe(xi0, self._real_commands(ref_u, cand)):
-                best = self._make_plan(cand, ref_u, ref_real, theta_t, True)  # the seed is a plan too
+            if not self._collisions(ref_real, margin=CHECK_MARGIN):
+                clear_plans.append(self._make_plan(cand, ref_u, ref_real, theta_t, True))  # the seed is a plan too
         trust_scale = 1.0
         for it in range(cfg.max_iterations if iterations is None else iterations):
             st["iterations"] += 1
@@ -414,7 +426,7 @@ class MirrorPlanner:
                 if cand.switch is not None:  # step s starts from the flipped lag states
                     lin_at[cand.switch] = FLIP @ lin_at[cand.switch]
                 lin = self.model.jacobian_linearisation(lin_at, ref_u)
-                P_it = (P + trust_scale * self._trust_diag()).tocsc()
+                P_it = (P + trust_scale * self._trust).tocsc()
                 P_it.sum_duplicates()
             else:
                 P_it = P
@@ -436,13 +448,9 @@ class MirrorPlanner:
                 break
             u_planned = x[self.iu0 : self.iS].reshape(N, NU)  # slack variables follow S
             real = self._rollout(xi0, u_planned, cand)
-            hits = self._collisions(real)
-            clear = not hits and self._truth_safe(xi0, self._real_commands(u_planned, cand))
-            if not hits and not clear:
-                hits = self._collisions(real, margin=self.cfg.obstacle_margin)  # too close: constrain
-            plan = self._make_plan(cand, u_planned, real, theta_t, clear)
-            if clear and (best is None or plan.cost < best.cost):
-                best = plan
+            hits = self._collisions(real, margin=CHECK_MARGIN)  # closer than that: constrain
+            if not hits:
+                clear_plans.append(self._make_plan(cand, u_planned, real, theta_t, True))
 
             if paper:  # the paper's scheme: one model, Algorithm I until clear
                 if not hits:
@@ -464,6 +472,10 @@ class MirrorPlanner:
                 trust_scale *= 4.0
                 if trust_scale > cfg.max_trust_scale:
                     break
+        for plan in sorted(clear_plans, key=lambda q: q.cost)[:3]:  # the cheapest that the truth confirms
+            if self._truth_safe(xi0, plan.commands):
+                best = plan
+                break
         if best is not None:
             st["status"] = "ok"
         elif ref_u is not None:  # no clear plan: the best iterate's safe start, if any
@@ -481,39 +493,48 @@ class MirrorPlanner:
 
     # ------------------------------------------------------------------ cost
     def _cost(self, cand: Candidate, theta_t: float):
-        """P, c of sum w * residual^2 (piqp: 1/2 z'Pz + c'z)."""
-        cfg, N = self.cfg, self.N
+        """P, c of sum w * residual^2 (piqp: 1/2 z'Pz + c'z); P is built once per switch step."""
+        if cand.switch not in self._cost_cache:
+            self._cost_cache[cand.switch] = self._cost_pattern(cand)
+        L, w, P, kinds = self._cost_cache[cand.switch]
         kappa = 1.0 if cand.switch is not None else 0.0
         tx, ty, _ = self._goal
-        T = ((1 - 2 * kappa) * tx, (1 - 2 * kappa) * ty)  # residual = p_i - 2 kappa S - T
-        rows, cols, vals, k0, w = [], [], [], [], []
+        k0 = np.zeros(len(w))  # residual = p_i - 2 kappa S - (1 - 2 kappa) goal
+        k0[kinds == 1] = -(1 - 2 * kappa) * tx
+        k0[kinds == 2] = -(1 - 2 * kappa) * ty
+        k0[kinds == 3] = -theta_t
+        return P, 2.0 * (L.T @ (w * k0))
+
+    def _cost_pattern(self, cand: Candidate):
+        cfg, N = self.cfg, self.N
+        kappa = 1.0 if cand.switch is not None else 0.0
+        rows, cols, vals, kinds, w = [], [], [], [], []
         r = 0
 
-        def add(entries, const, weight):
+        def add(entries, kind, weight):
             nonlocal r
             for col, v in entries:
                 rows.append(r), cols.append(col), vals.append(v)
-            k0.append(const), w.append(weight)
+            kinds.append(kind), w.append(weight)
             r += 1
 
         for i in range(1, N + 1):
             wp = cfg.w_terminal_position if i == N else cfg.w_position * cfg.dt
             wh = cfg.w_terminal_heading if i == N else cfg.w_heading * cfg.dt
-            for j, tj in ((XI_X, T[0]), (XI_Y, T[1])):
-                add([(self.ix(i, j), 1.0), (self.iS + j, -2.0 * kappa)], -tj, wp)
-            add([(self.ix(i, XI_TH), 1.0)], -theta_t, wh)
-        add([(self.ix(N, XI_A), 1.0)], 0.0, cfg.w_terminal_accel)
+            for j, kind in ((XI_X, 1), (XI_Y, 2)):
+                add([(self.ix(i, j), 1.0), (self.iS + j, -2.0 * kappa)], kind, wp)
+            add([(self.ix(i, XI_TH), 1.0)], 3, wh)
+        add([(self.ix(N, XI_A), 1.0)], 0, cfg.w_terminal_accel)
         for i in range(N):
-            add([(self.iu(i, 0), 1.0)], 0.0, cfg.w_accel_cmd * cfg.dt)
-            add([(self.iu(i, 1), 1.0)], 0.0, cfg.w_steer_cmd * cfg.dt)
+            add([(self.iu(i, 0), 1.0)], 0, cfg.w_accel_cmd * cfg.dt)
+            add([(self.iu(i, 1), 1.0)], 0, cfg.w_steer_cmd * cfg.dt)
             if i > 0 and i != cand.switch:  # no rate cost across the switch (commands flip)
-                add([(self.iu(i, 0), 1.0), (self.iu(i - 1, 0), -1.0)], 0.0, cfg.w_accel_rate)
-                add([(self.iu(i, 1), 1.0), (self.iu(i - 1, 1), -1.0)], 0.0, cfg.w_steer_rate)
+                add([(self.iu(i, 0), 1.0), (self.iu(i - 1, 0), -1.0)], 0, cfg.w_accel_rate)
+                add([(self.iu(i, 1), 1.0), (self.iu(i - 1, 1), -1.0)], 0, cfg.w_steer_rate)
         L = sp.csr_matrix((vals, (rows, cols)), shape=(r, self.nz))
-        W = sp.diags(w)
-        P = sp.triu(2.0 * (L.T @ W @ L)).tocsc()  # piqp reads the upper triangle
-        c = 2.0 * (L.T @ (np.asarray(w) * np.asarray(k0)))
-        return P, c
+        w = np.asarray(w)
+        P = sp.triu(2.0 * (L.T @ sp.diags(w) @ L)).tocsc()  # piqp reads the upper triangle
+        return L, w, P, np.asarray(kinds)
 
     def _trust_diag(self) -> sp.csc_matrix:
         cfg = self.cfg
