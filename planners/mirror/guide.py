@@ -139,24 +139,17 @@ class GuideSearch:
 
     def _first_moves(self, pose, start_gap: float) -> list[np.ndarray]:
         """Clear arcs from ``pose``: both gears, full lock either way or straight, 1-3 m."""
-        step = self.cfg.sample_step
         out = []
         for gear in (1.0, -1.0):
             for kappa in (1.0 / self.rs.radius, -1.0 / self.rs.radius, 0.0):
                 for length in (1.0, 2.0, 3.0):
-                    s = gear * np.arange(0.0, length + 1e-9, step)
-                    th = pose[2] + kappa * s
-                    if kappa:
-                        x = pose[0] + (np.sin(th) - math.sin(pose[2])) / kappa
-                        y = pose[1] - (np.cos(th) - math.cos(pose[2])) / kappa
-                    else:
-                        x, y = pose[0] + s * math.cos(pose[2]), pose[1] + s * math.sin(pose[2])
-                    arc = np.stack([x, y, th], axis=1)
+                    arc = self._arc(pose, gear, kappa, length)
                     if self._clear(arc, start_gap):
                         out.append(arc)
         return out
 
     def _arc(self, pose, gear: float, kappa: float, length: float) -> np.ndarray:
+        """Poses every ``sample_step`` along an arc of curvature ``kappa`` driven in ``gear``."""
         s = gear * np.arange(0.0, length + 1e-9, self.cfg.sample_step)
         th = pose[2] + kappa * s
         if kappa:
