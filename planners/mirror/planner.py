@@ -121,6 +121,7 @@ class MirrorPlanner:
         self.line = mirror_line(geometry, margin=cfg.mirror_margin)
         self._goal = np.array(geometry.target, float)  # the goal of the plan being made
         self._guide: GuideSearch | None = None  # built by the first call (its time counts)
+        self._guide_detail: dict = {}  # the last guide search's cost, reported with each call
         self._tracker_cfg = TrackerConfig(cruise_speed=cfg.seed_speed, accel=cfg.seed_accel, decel=cfg.seed_accel)
         self._faces, self._vertices = _useful_features(geometry)
         p = self.p
@@ -219,8 +220,6 @@ class MirrorPlanner:
         return replace(best, stats=stats) if best is not None else None
 
     # ----------------------------------------------------------------- guided
-    _guide_detail: dict = {}
-
     def _plan_guided(self, xi0: np.ndarray, t0: float) -> Plan | None:
         """One plan along the guide's next switch: seed from tracking the guide, then SCP
         toward the mirrored goal (the guide's pose after its second gear segment, or the
