@@ -129,13 +129,17 @@ class GuideSearch:
     def _gaps(self, poses: np.ndarray) -> np.ndarray:
         return -self.checker.penetration(poses[:, 0], poses[:, 1], poses[:, 2]).max(axis=1)
 
-    def _clear(self, poses: np.ndarray, start_gap: float | None = None, gap: float | None = None) -> bool:
+    def _need(self, poses: np.ndarray, start_gap: float | None, gap: float | None = None) -> np.ndarray | float:
+        """Gap each pose must keep: ``gap`` (default ``cfg.gap``), but near a start that is
+        tighter than that only the start's own gap, so that the car can leave it."""
         need = self.cfg.gap if gap is None else gap
-        gaps = self._gaps(poses)
-        if start_gap is not None and start_gap < need:  # a tight start: keep its own gap nearby
-            near = np.hypot(poses[:, 0] - poses[0, 0], poses[:, 1] - poses[0, 1]) < self.cfg.start_relief
-            return bool(np.all(gaps >= np.where(near, max(start_gap, 0.0) - 1e-6, need)))
-        return bool(np.all(gaps >= need))
+        if start_gap is None or start_gap >= need:
+            return need
+        near = np.hypot(poses[:, 0] - poses[0, 0], poses[:, 1] - poses[0, 1]) < self.cfg.start_relief
+        return np.where(near, max(start_gap, 0.0) - 1e-6, need)
+
+    def _clear(self, poses: np.ndarray, start_gap: float | None = None, gap: float | None = None) -> bool:
+        return bool(np.all(self._gaps(poses) >= self._need(poses, start_gap, gap)))
 
     def _first_moves(self, pose, start_gap: float) -> list[np.ndarray]:
         """Clear arcs from ``pose``: both gears, full lock either way or straight, 1-3 m."""
@@ -171,12 +175,7 @@ class GuideSearch:
                 for n in range(arcs):
                     gear = first_gear if n % 2 == 0 else -first_gear
                     arc = self._arc(q, gear, turn * gear * k_max, 0.5 * math.pi * self.rs.radius)
-                    gaps = self._gaps(arc)
-                    need = np.full(len(arc), self.cfg.gap)
-                    if n == 0 and start_gap < self.cfg.gap:
-                        near = np.hypot(arc[:, 0] - arc[0, 0], arc[:, 1] - arc[0, 1]) < self.cfg.start_relief
-                        need = np.where(near, max(start_gap, 0.0) - 1e-6, need)
-                    bad = np.flatnonzero(gaps < need)
+                    bad = np.flatnonzero(self._gaps(arc) < self._need(arc, start_gap if n == 0 else None))
                     stop = (bad[0] if len(bad) else len(arc)) - 1
                     if stop < 2:
                         break
@@ -220,9 +219,10 @@ def switch_poses(g: ScenarioGeometry, radius: float) -> list[np.ndarray]:
 
     Parallel: Theorem 1's switch pose (the dark point: heading psi* at l* deeper than the
     target, a forward arc of the guide's radius away) and shallower variants of it, each
-    also shifted along the slot and up to 0.3 m deeper. Reverse and angle: on the slot's axis, 0.5-6 m out of the
-    slot (heading the target's: the car reverses straight in from there), and the same
-    poses turned by +-0.4 and +-0.8 rad about the end of a reversing arc.
+    also shifted along the slot and up to 0.3 m deeper. Reverse and angle: on the slot's
+    axis, 0.5-6 m out of the slot (heading the target's: the car reverses straight in
+    from there), and the same poses turned by +-0.4 and +-0.8 rad about the end of a
+    reversing arc.
     """
     tx, ty, th = g.target
     u = np.array([math.cos(th), math.sin(th)])
