@@ -42,10 +42,11 @@ class GuideConfig:
     cusp_cost: float = 3.0  # [m] per direction switch
     reverse_cost: float = 0.5  # extra cost per metre driven in reverse
     max_checked: int = 24  # candidate paths checked per call
-    start_relief: float = 1.0  # near a start that is closer than ``gap``, keep its own gap
+    start_relief: float = 1.0  # [m] around the start, the gap may shrink to ``start_gap``
+    start_gap: float = 0.01  # (or to the start's own gap, if smaller): room to leave a kerb
 
     def __post_init__(self) -> None:
-        for name in ("steer_fraction", "sample_step", "coarse_step", "gap", "start_relief"):
+        for name in ("steer_fraction", "sample_step", "coarse_step", "gap", "start_relief", "start_gap"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name}: must be a finite number > 0, got {v!r}")
@@ -83,6 +84,7 @@ class GuideSearch:
             tail = self.rs.sample(v, self.target, cfg.sample_step)
             if self._clear(tail):
                 self._tails.append((v, tail, self._cost(tail)))
+        self._tails += self._escape_tails()
         self._road_tails: list[tuple[np.ndarray, np.ndarray, float]] | None = None  # built when first needed
 
     def road_tails(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
@@ -129,14 +131,22 @@ class GuideSearch:
     def _gaps(self, poses: np.ndarray) -> np.ndarray:
         return -self.checker.penetration(poses[:, 0], poses[:, 1], poses[:, 2]).max(axis=1)
 
-    def _need(self, poses: np.ndarray, start_gap: float | None, gap: float | None = None) -> np.ndarray | float:
-        """Gap each pose must keep: ``gap`` (default ``cfg.gap``), but near a start that is
-        tighter than that only the start's own gap, so that the car can leave it."""
+    def _need(
+        self, poses: np.ndarray, start_gap: float | None, gap: float | None = None, floor: float | None = None
+    ) -> np.ndarray | float:
+        """Gap each pose must keep: ``gap`` (default ``cfg.gap``), but within ``start_relief``
+        of a start only ``floor`` (default ``cfg.start_gap``; or the start's own gap, if
+        smaller), so that a car standing close to a kerb can leave it (its overhang swings
+        out as it turns away)."""
         need = self.cfg.gap if gap is None else gap
-        if start_gap is None or start_gap >= need:
+        if start_gap is None:
+            return need
+        floor = self.cfg.start_gap if floor is None else floor
+        near_need = min(need, floor, max(start_gap, 0.0) - 1e-6)
+        if near_need >= need:
             return need
         near = np.hypot(poses[:, 0] - poses[0, 0], poses[:, 1] - poses[0, 1]) < self.cfg.start_relief
-        return np.where(near, max(start_gap, 0.0) - 1e-6, need)
+        return np.where(near, near_need, need)
 
     def _clear(self, poses: np.ndarray, start_gap: float | None = None, gap: float | None = None) -> bool:
         return bool(np.all(self._gaps(poses) >= self._need(poses, start_gap, gap)))
@@ -163,26 +173,46 @@ class GuideSearch:
             x, y = pose[0] + s * math.cos(pose[2]), pose[1] + s * math.sin(pose[2])
         return np.stack([x, y, th], axis=1)
 
-    def _turns(self, pose, start_gap: float, arcs: int = 4) -> list[np.ndarray]:
-        """Multi-point turns on the spot: full-lock arcs in alternating gears that keep
-        turning one way, each driven as far as it stays clear (at most a quarter turn);
-        every prefix ending after an arc is returned."""
+    def _turn_chains(self, pose, start_gap: float | None, arcs: int) -> list[tuple[np.ndarray, list[int]]]:
+        """Multi-point turns: full-lock arcs in alternating gears that keep turning one way,
+        each driven as far as it stays clear (at most a quarter turn). One chain per turn
+        direction and first gear, with the index of the pose that ends each arc."""
         k_max = 1.0 / self.rs.radius
         out = []
         for turn in (1.0, -1.0):
             for first_gear in (1.0, -1.0):
-                q, acc = np.asarray(pose, float), [np.asarray(pose, float)[None]]
+                q, acc, ends = np.asarray(pose, float), [np.asarray(pose, float)[None]], []
                 for n in range(arcs):
                     gear = first_gear if n % 2 == 0 else -first_gear
                     arc = self._arc(q, gear, turn * gear * k_max, 0.5 * math.pi * self.rs.radius)
-                    bad = np.flatnonzero(self._gaps(arc) < self._need(arc, start_gap if n == 0 else None))
+                    # No relief below the gap: the next arc must start clear by it.
+                    need = self._need(arc, start_gap if n == 0 else None, floor=self.cfg.gap)
+                    bad = np.flatnonzero(self._gaps(arc) < need)
                     stop = (bad[0] if len(bad) else len(arc)) - 1
                     if stop < 2:
                         break
-                    arc = arc[: stop + 1]
-                    acc.append(arc[1:])
-                    q = arc[-1]
-                    out.append(np.concatenate(acc))
+                    acc.append(arc[1 : stop + 1])
+                    ends.append(sum(len(a) for a in acc) - 1)
+                    q = arc[stop]
+                if ends:
+                    out.append((np.concatenate(acc), ends))
+        return out
+
+    def _turns(self, pose, start_gap: float, arcs: int = 4) -> list[np.ndarray]:
+        """Multi-point turns on the spot from ``pose``: every prefix that ends after an arc."""
+        return [chain[: e + 1] for chain, ends in self._turn_chains(pose, start_gap, arcs) for e in ends]
+
+    def _escape_tails(self, arcs: int = 6, every: float = 1.0) -> list[tuple[np.ndarray, np.ndarray, float]]:
+        """Tails that park by back-and-forth arcs inside the slot: multi-point turns out of
+        the slot from the target, reversed. Their via poses are each arc's end and, from the
+        second arc on, a pose every ``every`` metres (where the car may join from the road)."""
+        step = max(1, round(every / self.cfg.sample_step))
+        out = []
+        for chain, ends in self._turn_chains(self.target, None, arcs):
+            picks = set(ends) | set(range(ends[0] + step, len(chain), step))
+            for i in sorted(picks):
+                tail = chain[i::-1].copy()
+                out.append((tail[0], tail, self._cost(tail)))
         return out
 
     # -- search -----------------------------------------------------------------------
