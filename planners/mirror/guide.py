@@ -234,7 +234,7 @@ class GuideSearch:
                 best = Guide(Path.from_poses(found[0]), found[1], 1)
         if best is None:  # an awkward start: first one arc (or a turn on the spot), then connect
             tails = self._tails + self.road_tails()
-            for arc in self._first_moves(pose, start_gap) + self._turns(pose, start_gap):
+            for arc in self._first_moves(pose, start_gap) + self._turns(pose, start_gap, arcs=8):
                 found = self._connect(arc[-1], tails, 4)
                 if found is not None:
                     poses = np.concatenate([arc, found[0][1:]])

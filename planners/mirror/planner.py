@@ -42,6 +42,8 @@ from .solvers import INACTIVE, QP, BranchAndBound, Disjunction, PiqpQP
 
 XI_X, XI_Y, XI_TH, XI_V, XI_A, XI_D = range(6)
 CHECK_MARGIN = 0.01  # [m] a planning-model rollout closer than this to an obstacle is not clear
+START_RELIEF = 0.5  # [m] around a start closer than a margin, only its own gap is kept ...
+START_SLACK = 0.0005  # [m] ... less this much
 FLIP = np.diag([1.0, 1.0, 1.0, -1.0, -1.0, -1.0])  # planned <- real lag states at the switch
 TURN = math.inf  # seed mode: steer toward the target heading in both segments
 
@@ -120,6 +122,7 @@ class MirrorPlanner:
         self.miqp = miqp or BranchAndBound(self.qp_backend, cfg.node_limit, cfg.time_limit_s)
         self.line = mirror_line(geometry, margin=cfg.mirror_margin)
         self._goal = np.array(geometry.target, float)  # the goal of the plan being made
+        self._start = (0.0, 0.0, math.inf)  # (x, y, gap) of the call's start, for _clearance
         self._guide: GuideSearch | None = None  # built by the first call (its time counts)
         self._guide_detail: dict = {}  # the last guide search's cost, reported with each call
         self._tracker_cfg = TrackerConfig(cruise_speed=cfg.seed_speed, accel=cfg.seed_accel, decel=cfg.seed_accel)
@@ -179,6 +182,8 @@ class MirrorPlanner:
         t0 = time.perf_counter()
         xi0 = state.as_array()
         self._goal = np.array(self.g.target, float)
+        gap0 = -float(self.g.checker.penetration(xi0[:1], xi0[1:2], xi0[2:3]).max())
+        self._start = (float(xi0[0]), float(xi0[1]), gap0)
         if self.cfg.guide and self.cfg.linearisation == "scp" and candidates is None:
             plan = self._plan_guided(xi0, t0)
             if plan is not None or not self.cfg.fallback:
@@ -747,13 +752,24 @@ class MirrorPlanner:
 
     def _clear_and_stopped(self, poses: list[np.ndarray], end: np.ndarray, clearance: float = 0.005) -> bool:
         q = np.concatenate(poses)
-        clear = self.g.checker.penetration(q[:, 0], q[:, 1], q[:, 2]).max() < -clearance
+        pen = self.g.checker.penetration(q[:, 0], q[:, 1], q[:, 2]).max(axis=1)
+        clear = bool(np.all(pen < -self._clearance(q, clearance)))
         return bool(clear and abs(end[XI_V]) < 0.05)
+
+    def _clearance(self, poses: np.ndarray, margin: float) -> np.ndarray | float:
+        """Clearance each pose must keep: ``margin``, but near a start that is closer than
+        that, most of the start's own gap (the car may leave a tight spot, not tighten it)."""
+        x0, y0, gap0 = self._start
+        if gap0 >= margin + START_SLACK:
+            return margin
+        near = np.hypot(poses[:, 0] - x0, poses[:, 1] - y0) < START_RELIEF
+        return np.where(near, min(margin, gap0 - START_SLACK), margin)
 
     def _collisions(self, real_half: np.ndarray, margin: float = 0.0) -> list[tuple[int, int]]:
         """(step, obstacle) pairs to constrain: steps next to any half step closer than ``margin``."""
         pen = self.g.checker.penetration(real_half[:, 0], real_half[:, 1], real_half[:, 2])
-        hit = pen > -1e-9 - margin
+        need = self._clearance(real_half, margin) if margin > 0 else 0.0
+        hit = pen > -1e-9 - np.reshape(need, (-1, 1))
         out = set()
         m = self.cfg.model_substeps
         for h, k in zip(*np.nonzero(hit)):
