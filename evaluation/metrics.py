@@ -53,6 +53,7 @@ def summary(df: pd.DataFrame, planner: str | None = None) -> dict[str, Any]:
     ok = df[success] if len(df) else df
     times = _plan_times(df)
     wall = df["episode_wall_s"].dropna() if "episode_wall_s" in df else pd.Series(dtype=float)
+    setup = df["setup_ms"].dropna() if "setup_ms" in df else pd.Series(dtype=float)
     return {
         "planner": planner if planner is not None else (planners[0] if len(planners) == 1 else planners),
         "cases": int(len(df)),
@@ -64,6 +65,7 @@ def summary(df: pd.DataFrame, planner: str | None = None) -> dict[str, Any]:
             "p95": float(np.percentile(times, 95)) if len(times) else None,
             "mean": float(times.mean()) if len(times) else None,
         },
+        "setup_ms": {"median": float(setup.median()) if len(setup) else None},  # per episode, at reset
         "episode_wall_s": {"median": float(wall.median()) if len(wall) else None},
         "errors": int((df.get("planner_status") == "error").sum()) if len(df) else 0,
     }

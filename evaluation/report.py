@@ -153,7 +153,7 @@ def write_report(df: pd.DataFrame, out: str | Path, baseline: str | None = None)
 
     lines = ["# MirrorPark evaluation report", ""]
     lines += [f"Cases: {df['case_id'].nunique()} ({', '.join(f'{t}: {(df[df.parking_type == t].case_id.nunique())}' for t in TYPES)}); planners: {', '.join(planners)}.", ""]
-    lines += ["## Summary", "", "| planner | cases | success all | parallel | reverse | angle | switches | parking time [s] | plan ms median | p95 | ODD cells |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines += ["## Summary", "", "| planner | cases | success all | parallel | reverse | angle | switches | parking time [s] | plan ms median | p95 | setup ms | ODD cells |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for p in planners:
         s = summary(df, p)
         r = s["success_rate"]
@@ -161,8 +161,10 @@ def write_report(df: pd.DataFrame, out: str | Path, baseline: str | None = None)
         lines.append(
             f"| {p} | {s['cases']} | {pct(r['all'])} | {pct(r['parallel'])} | {pct(r['reverse'])} | {pct(r['angle'])} | "
             f"{_fmt(s['mean_switches'])} | {_fmt(s['mean_parking_time_s'])} | {_fmt(s['plan_time_ms']['median'])} | "
-            f"{_fmt(s['plan_time_ms']['p95'])} | {sizes.get(p, {}).get('all', 0)} |"
+            f"{_fmt(s['plan_time_ms']['p95'])} | {_fmt(s['setup_ms']['median'])} | {sizes.get(p, {}).get('all', 0)} |"
         )
+    lines += ["", "Plan ms: per planning call, pooled. Setup ms: median per episode of the policy's "
+              "preparation at reset (what depends on the slot alone), not counted in plan ms."]
     lines += ["", f"## The paper's headline comparisons ({main} vs {baseline or 'no baseline in these results'})", "",
               "| measure | paper | ours |", "|---|---|---|"]  # fmt: skip
     for h in headline(df, main, baseline):

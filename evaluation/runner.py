@@ -76,6 +76,7 @@ def run_case(planner: str, case_id: str) -> dict[str, Any]:
             plan_time_median_ms=float(np.median(times)) if times else math.nan,
             plan_time_max_ms=float(np.max(times)) if times else math.nan,
             plan_times_ms=[round(t, 3) for t in times],
+            setup_ms=1e3 * float(getattr(policy, "setup_time_s", 0.0)),
             planner_status=policy.status,
             error=None,
         )

@@ -37,6 +37,7 @@ class Policy(ABC):
     def __init__(self) -> None:
         self.stats: list[PlanStats] = []
         self.gave_up = False  # True once the policy has stopped trying (it only brakes now)
+        self.setup_time_s = 0.0  # wall time of the last reset's per-episode preparation
 
     @abstractmethod
     def reset(self, geometry: ScenarioGeometry) -> None:

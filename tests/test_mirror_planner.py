@@ -249,3 +249,62 @@ def test_guided_plan_has_one_switch_standing_and_ends_at_rest():
     if plan.candidate.switch is not None:
         assert abs(v[plan.candidate.switch]) < 1e-3
     assert abs(v[-1]) < 0.05
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "case_id",
+    [
+        "parallel_rw4.00_sl5.02_sw2.50_th+0_y2.10",  # 1.31 car lengths: back and forth inside
+        "parallel_rw4.50_sl5.72_sw2.50_th+0_y3.60",  # starts 6.5 cm from the far kerb
+        "angle_rw4.00_sl4.82_sw2.42_th+0_y1.30",  # its second plan ends millimetres from a side
+    ],
+)
+def test_hard_cases_park(case_id):
+    env = gym.make("MirrorPark-v0").unwrapped
+    policy = MirrorPolicy()
+    info, _ = run_episode(env, policy, case_id)
+    assert info["is_success"], (info["failed_criterion"], [s.status for s in policy.stats])
+    assert policy.setup_time_s > 0  # the slot's tables are built at reset, not in a call
+
+
+def _guide_from_start(case_id, config=None, escape=True):
+    from planners.mirror.guide import GuideSearch
+
+    env = gym.make("MirrorPark-v0").unwrapped
+    _, info = env.reset(options={"scenario": case_id})
+    g = info["geometry"]
+    if not escape:
+        GuideSearch._escape_tails, saved = (lambda self: []), GuideSearch._escape_tails
+    try:
+        search = GuideSearch(g, config)
+    finally:
+        if not escape:
+            GuideSearch._escape_tails = saved
+    s = g.start
+    return g, search, search.search((s.x, s.y, s.theta))
+
+
+def test_short_parallel_slot_needs_the_in_slot_tails():
+    """1.31 car lengths: no single arc gets in; only back and forth inside the slot does."""
+    case = "parallel_rw4.00_sl5.02_sw2.50_th+0_y2.10"
+    assert _guide_from_start(case, escape=False)[2] is None
+    g, search, guide = _guide_from_start(case)
+    assert guide is not None and guide.path.switches >= 2
+    assert _shapely_gap(g, guide.path.poses[1:]) >= search.cfg.gap - 1e-6
+
+
+def test_a_car_at_the_kerb_may_leave_it_closer_than_the_gap():
+    """6.5 cm from the far kerb, turning away swings the rear overhang ~5 cm out: with the
+    full 4 cm gap near the start there is no guide; with the relief there is, and it keeps
+    1 cm within 1 m of the start and 4 cm beyond."""
+    from planners.mirror.guide import GuideConfig
+
+    case = "parallel_rw4.50_sl5.72_sw2.50_th+0_y3.60"
+    assert _guide_from_start(case, GuideConfig(start_gap=0.04))[2] is None
+    g, search, guide = _guide_from_start(case)
+    assert guide is not None
+    poses = guide.path.poses
+    near = np.hypot(poses[:, 0] - poses[0, 0], poses[:, 1] - poses[0, 1]) < search.cfg.start_relief
+    assert _shapely_gap(g, poses[1:][near[1:]]) >= search.cfg.start_gap - 1e-6
+    assert _shapely_gap(g, poses[~near]) >= search.cfg.gap - 1e-6

@@ -198,10 +198,6 @@ class GuideSearch:
                     out.append((np.concatenate(acc), ends))
         return out
 
-    def _turns(self, pose, start_gap: float, arcs: int = 4) -> list[np.ndarray]:
-        """Multi-point turns on the spot from ``pose``: every prefix that ends after an arc."""
-        return [chain[: e + 1] for chain, ends in self._turn_chains(pose, start_gap, arcs) for e in ends]
-
     def _escape_tails(self, arcs: int = 6, every: float = 1.0) -> list[tuple[np.ndarray, np.ndarray, float]]:
         """Tails that park by back-and-forth arcs inside the slot: multi-point turns out of
         the slot from the target, reversed. Their via poses are each arc's end and, from the
@@ -234,7 +230,8 @@ class GuideSearch:
                 best = Guide(Path.from_poses(found[0]), found[1], 1)
         if best is None:  # an awkward start: first one arc (or a turn on the spot), then connect
             tails = self._tails + self.road_tails()
-            for arc in self._first_moves(pose, start_gap) + self._turns(pose, start_gap, arcs=8):
+            turns = [chain[: e + 1] for chain, ends in self._turn_chains(pose, start_gap, arcs=8) for e in ends]
+            for arc in self._first_moves(pose, start_gap) + turns:
                 found = self._connect(arc[-1], tails, 4)
                 if found is not None:
                     poses = np.concatenate([arc, found[0][1:]])

@@ -41,6 +41,7 @@ from .model import NU, NX, PlanningModel
 from .solvers import INACTIVE, QP, BranchAndBound, Disjunction, PiqpQP
 
 XI_X, XI_Y, XI_TH, XI_V, XI_A, XI_D = range(6)
+_COST_PATTERNS: dict[MirrorPlannerConfig, dict[int | None, tuple]] = {}  # they depend on the config alone
 CHECK_MARGIN = 0.01  # [m] a planning-model rollout closer than this to an obstacle is not clear
 START_RELIEF = 0.5  # [m] around a start closer than a margin, only its own gap is kept ...
 START_SLACK = 0.0005  # [m] ... less this much
@@ -123,7 +124,7 @@ class MirrorPlanner:
         self.line = mirror_line(geometry, margin=cfg.mirror_margin)
         self._goal = np.array(geometry.target, float)  # the goal of the plan being made
         self._start = (0.0, 0.0, math.inf)  # (x, y, gap) of the call's start, for _clearance
-        self._guide: GuideSearch | None = None  # built by the first call (its time counts)
+        self._guide: GuideSearch | None = None  # built by prepare() (the policy: at reset)
         self._guide_detail: dict = {}  # the last guide search's cost, reported with each call
         self._tracker_cfg = TrackerConfig(cruise_speed=cfg.seed_speed, accel=cfg.seed_accel, decel=cfg.seed_accel)
         self._faces, self._vertices = _useful_features(geometry)
@@ -144,7 +145,7 @@ class MirrorPlanner:
         self.nz = self.iS + 2
         self._dyn_pattern()
         self._trust = self._trust_diag()
-        self._cost_cache: dict[int | None, tuple] = {}
+        self._cost_cache = _COST_PATTERNS.setdefault(cfg, {})  # per switch step; shared by episodes
         self.last_stats: PlanStats | None = None  # the latest call's, a failed one's too
 
     # --------------------------------------------------------------- indices
@@ -225,12 +226,18 @@ class MirrorPlanner:
         return replace(best, stats=stats) if best is not None else None
 
     # ----------------------------------------------------------------- guided
+    def prepare(self) -> None:
+        """Build what depends on the slot alone, once per episode (the policy does it at
+        reset, as a car does once it has measured the slot): the guide's tails."""
+        if self._guide is None and self.cfg.guide:
+            self._guide = GuideSearch(self.g)
+            self._guide.road_tails()
+
     def _plan_guided(self, xi0: np.ndarray, t0: float) -> Plan | None:
         """One plan along the guide's next switch: seed from tracking the guide, then SCP
         toward the mirrored goal (the guide's pose after its second gear segment, or the
         target). None when there is no guide or no clear plan along it."""
-        if self._guide is None:
-            self._guide = GuideSearch(self.g)
+        self.prepare()
         guide = self._guide.search(xi0[:3])
         self._guide_detail = {"guide_cost": guide.cost if guide else math.inf}
         if guide is None:
