@@ -41,11 +41,12 @@ def planning_times(planners: list[str], case_ids: list[str]) -> dict:
 
     out = {}
     for p in planners:
-        times, wall, ok = [], [], 0
+        times, wall, setup, ok = [], [], [], 0
         for cid in case_ids:
             row = run_case(p, cid)
             times += row.get("plan_times_ms") or []
             wall.append(row["episode_wall_s"])
+            setup.append(row.get("setup_ms", 0.0))
             ok += bool(row.get("success"))
         t = np.asarray(times, float)
         out[p] = {
@@ -55,6 +56,7 @@ def planning_times(planners: list[str], case_ids: list[str]) -> dict:
             "plan_ms_median": float(np.median(t)) if len(t) else None,
             "plan_ms_p95": float(np.percentile(t, 95)) if len(t) else None,
             "plan_ms_mean": float(t.mean()) if len(t) else None,
+            "setup_ms_median": float(np.median(setup)) if setup else None,  # per episode, at reset
             "episode_wall_s_median": float(np.median(wall)) if wall else None,
         }
     return out
