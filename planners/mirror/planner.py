@@ -229,7 +229,7 @@ class MirrorPlanner:
     def prepare(self) -> None:
         """Build what depends on the slot alone, once per episode (the policy does it at
         reset, as a car does once it has measured the slot): the guide's tails."""
-        if self._guide is None and self.cfg.guide:
+        if self._guide is None and self.cfg.guide and self.cfg.linearisation == "scp":
             self._guide = GuideSearch(self.g)
             self._guide.road_tails()
 
