@@ -104,7 +104,6 @@ class FootprintChecker:
         kv = k * v
         self._n = np.stack([nx, ny])  # (2, KV): a point's coordinate along each normal
         self._m = np.block([[nx, ny], [ny, -nx]])  # (2, 2KV): [cos, sin] -> (u.n, v.n)
-        self._w = np.vstack([self.half_length * np.eye(kv), half_width * np.eye(kv)])  # (2KV, KV)
         self._pmin = obstacles.proj_min.reshape(-1)
         self._pmax = obstacles.proj_max.reshape(-1)
         self._verts = obstacles.vertices.reshape(-1, 2)  # (KV, 2)
@@ -115,13 +114,17 @@ class FootprintChecker:
         Where the obstacle's own axes already separate a pair, the value is that (<= 0)
         overlap; otherwise it is the exact penetration depth (the SAT minimum).
         """
-        x, y, theta = (np.atleast_1d(np.asarray(q, dtype=float)) for q in (x, y, theta))
-        n = len(x)
-        c, s = np.cos(theta), np.sin(theta)
-        cs = np.stack((c, s), axis=1)  # (P, 2)
-        o = np.stack((x, y), axis=1) + self.center_offset * cs  # body centres
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        n = len(theta)
+        cs = np.empty((n, 2))
+        c, s = np.cos(theta, out=cs[:, 0]), np.sin(theta, out=cs[:, 1])  # (P, 2)
+        o = self.center_offset * cs  # body centres
+        o[:, 0] += np.asarray(x, dtype=float).reshape(-1)
+        o[:, 1] += np.asarray(y, dtype=float).reshape(-1)
         pc = o @ self._n  # centre along each obstacle normal, (P, KV)
-        ext = np.abs(cs @ self._m) @ self._w  # half-extent of the rectangle along it
+        uv = np.abs(cs @ self._m)  # |u.n|, |v.n| per normal: the rectangle's half-extent along it
+        kv = self._k * self._v
+        ext = uv[:, :kv] * self.half_length + uv[:, kv:] * self.hw
         ov = np.minimum(pc + ext, self._pmax) - np.maximum(pc - ext, self._pmin)
         ov = ov.reshape(n, self._k, self._v).min(axis=2)  # (P, K)
         if not (ov > 0).any():

@@ -167,6 +167,52 @@ class TruthModel:
             rows.append((x, y, th, v, a_cmd + da * ea1, delta_cmd + dd * ede, abs(chord)))
         return np.array(rows)
 
+    def rollout(self, state, commands) -> np.ndarray:
+        """States at the end of every sub-step under a sequence of (a_cmd, delta_cmd), one
+        per control step: (steps * n, 7), the rows of chaining ``step`` (to rounding).
+
+        Open-loop sequences (a plan's commands) are rolled out in one vectorised pass;
+        where the speed would saturate, it falls back to chaining ``step``.
+        """
+        p = self.params
+        u = np.asarray(commands, dtype=float).reshape(-1, 2)
+        m = len(u)
+        if m == 0:
+            return np.empty((0, 7))
+        a_cmd = np.clip(u[:, 0], p.a_min, p.a_max)
+        d_cmd = np.clip(u[:, 1], -p.max_steer, p.max_steer)
+        x0, y0, th0, v0, a0, d0 = (float(s) for s in state[:6])
+        # Lag states at the start of each control step: a first-order recurrence.
+        ea, ed = self._ea_end[-1], self._ed_end[-1]
+        da, dd = np.empty(m), np.empty(m)
+        a, d = a0, d0
+        for i, (ac, dc) in enumerate(zip(a_cmd.tolist(), d_cmd.tolist())):
+            da[i], dd[i] = a - ac, d - dc
+            a, d = ac + da[i] * ea, dc + dd[i] * ed
+        h = self.h
+        ea0, ea1, edm, ede = (np.asarray(t) for t in (self._ea_start, self._ea_end, self._ed_mid, self._ed_end))
+        dv = (a_cmd[:, None] * h + da[:, None] * ea0 * self._dv_lag).ravel()
+        v = np.cumsum(np.concatenate(([v0], dv)))
+        if v.min() < p.v_min or v.max() > p.v_max:  # saturation is sequential: step by step
+            rows, s = [], np.asarray(state, float)
+            for ac, dc in u:
+                sub = self.step(s, ac, dc)
+                rows.append(sub)
+                s = sub[-1, :6]
+            return np.concatenate(rows)
+        ds = 0.5 * (v[:-1] + v[1:]) * h
+        dth = ds * np.tan((d_cmd[:, None] + dd[:, None] * edm).ravel()) / p.wheelbase
+        th = np.cumsum(np.concatenate(([th0], dth)))
+        half = 0.5 * dth
+        safe = np.where(np.abs(half) > 1e-12, half, 1.0)
+        chord = np.where(np.abs(half) > 1e-12, ds * np.sin(half) / safe, ds)
+        heading = th[:-1] + half
+        x = np.cumsum(np.concatenate(([x0], chord * np.cos(heading))))
+        y = np.cumsum(np.concatenate(([y0], chord * np.sin(heading))))
+        a_end = (a_cmd[:, None] + da[:, None] * ea1).ravel()
+        d_end = (d_cmd[:, None] + dd[:, None] * ede).ravel()
+        return np.stack((x[1:], y[1:], th[1:], v[1:], a_end, d_end, np.abs(chord)), axis=1)
+
 
 def to_action(params: VehicleParams, a_cmd: float, delta_cmd: float) -> np.ndarray:
     """Physical commands -> the environment's normalised action in [-1, 1]^2.

@@ -14,6 +14,7 @@ from fixed_cases import EASY_CASES
 from mirrorpark_env import Scenario, VehicleParams
 from mirrorpark_env.vehicle import footprint
 from planners.base import run_episode
+from planners.hybrid_astar import reeds_shepp
 from planners.hybrid_astar.heuristic import GridDistance, ReedsShepp
 from planners.hybrid_astar.search import HybridAStar, HybridAStarConfig, Path
 from planners.hybrid_astar.policy import HybridAStarPolicy
@@ -44,6 +45,38 @@ def test_reeds_shepp_on_an_empty_map_stays_within_limits():
         assert np.abs(path.curvature[inner]).max() <= (1 / R) * (1 + 1e-4)  # chord, not arc
     # A pure lateral shift needs turning both ways: longer than the shift itself.
     assert rs.distance((0, 0, 0), (0, 1, 0)) > 2.0
+
+
+def test_reeds_shepp_segments_agree_with_ompl():
+    """The segment solver (``reeds_shepp``) against ompl's state space: the same optimal
+    length, paths that end at the goal with the car's curvature, and ompl's own poses
+    except where two words tie for the optimum (ompl then keeps whichever rounding favours)."""
+    rs = ReedsShepp(R)
+    space = rs.space
+    s_a, s_b, s_c = space.allocState(), space.allocState(), space.allocState()
+    rng = np.random.default_rng(1)
+    same = 0
+    for n in range(400):
+        a = np.array([*rng.uniform(-6, 6, 2), rng.uniform(-math.pi, math.pi)])
+        b = np.array([*rng.uniform(-6, 6, 2), rng.uniform(-math.pi, math.pi)])
+        if n % 4 == 0:  # short hops: the parking-scale cases
+            b = a + np.array([*rng.normal(0, 0.5, 2), rng.normal(0, 0.3)])
+        kinds, lengths = reeds_shepp.path(a, b, R)
+        assert sum(abs(v) for v in lengths) == pytest.approx(rs.distance(a, b), abs=1e-9)
+        poses = rs.sample(a, b, 0.1)
+        # The unforced end: the segments' last sample lands on the goal.
+        end = reeds_shepp.sample(a, b, R, 0.1)[-2]
+        assert np.hypot(*(end[:2] - b[:2])) <= 0.1 + 1e-9
+        dth = np.abs(np.diff(poses[:-1, 2]))
+        assert dth.max() <= 0.1 / R + 1e-9  # turning at most at the car's curvature
+        # ompl's poses at the same fractions of the path.
+        s_a.setXY(*a[:2]), s_a.setYaw(a[2]), s_b.setXY(*b[:2]), s_b.setYaw(b[2])
+        ref = []
+        for t in np.linspace(0, 1, len(poses)):
+            space.interpolate(s_a, s_b, t, s_c)
+            ref.append((s_c.getX(), s_c.getY()))
+        same += np.abs(np.array(ref)[1:-1] - poses[1:-1, :2]).max(initial=0.0) < 1e-6
+    assert same >= 0.9 * 400
 
 
 def test_grid_distance_is_a_lower_bound_around_a_wall():

@@ -98,19 +98,19 @@ def test_qp_solution_satisfies_dynamics_and_bounds():
     pl = MirrorPlanner(g)
     xi0 = g.start.as_array()
     cand = Candidate(-1, 30)
-    Pm, c = pl._cost(cand, 0.0)
+    _, c = pl._cost(cand, 0.0)
     ref = pl._seed(xi0, cand)
     lin_at = pl._to_planned(ref, cand)
     lin_at[30] = FLIP @ lin_at[30]
     lin = pl.model.jacobian_linearisation(lin_at, pl._planned_controls(ref, cand))
-    qp, _, _, _ = pl._build(xi0, cand, 0.0, Pm, c, lin, ref, {}, False)
+    qp, _, _, _ = pl._build(xi0, cand, 0.0, c, lin, ref, {}, False)
     res = PiqpQP().solve(qp)
     assert res.status == "solved"
     z = res.x
     assert np.abs(qp.A @ z - qp.b).max() < 1e-5  # dynamics, initial state, switch link
     assert (z >= qp.x_l - 1e-6).all() and (z <= qp.x_u + 1e-6).all()
-    X = z[: pl.n_states].reshape(-1, 6)
-    U = z[pl.iu0 : pl.iS].reshape(-1, 2)
+    X = z[pl.x_index]
+    U = z[pl.u_index]
     assert (X[1:, 3] <= 1e-6).all()  # monodirectional: reversing throughout (planned frame)
     assert abs(X[30, 3]) < 1e-6 and abs(X[-1, 3]) < 1e-6  # stands at the switch and at N
     assert np.abs(U[:, 1]).max() <= 0.6 + 1e-6 and np.abs(X[:, 5]).max() <= 0.6 + 1e-6

@@ -69,6 +69,30 @@ def test_commands_and_speed_saturate():
     assert np.abs(traj[:, 5]).max() <= P.max_steer + 1e-12
 
 
+@pytest.mark.parametrize("substep", [0.01, 0.05])
+@pytest.mark.parametrize("saturating", [False, True])
+def test_vectorised_rollout_equals_chained_steps(substep, saturating):
+    """``rollout`` (open-loop plans) is the same model as ``step``: every sub-step's row
+    agrees, including gear changes, straight stretches and (by fallback) speed saturation."""
+    m = TruthModel(P, 0.1, substep)
+    rng = np.random.default_rng(3)
+    cmds = np.stack([rng.uniform(-3, 3, 60), rng.uniform(-0.7, 0.7, 60)], axis=1)  # beyond bounds: clipped
+    cmds[20:30, 1] = 0.0  # straight: the chord's small-angle branch
+    if saturating:
+        cmds[:, 0] = 5.0
+    state = np.array([1.0, -2.0, 0.3, 0.4 if not saturating else 2.5, 0.2, -0.1])
+    chained, s = [], state
+    for a, d in cmds:
+        sub = m.step(s, a, d)
+        chained.append(sub)
+        s = sub[-1, :6]
+    chained = np.concatenate(chained)
+    fast = m.rollout(state, cmds)
+    assert fast.shape == chained.shape == (60 * round(0.1 / substep), 7)
+    assert np.abs(fast - chained).max() < 1e-9
+    assert (chained[:, 3].max() >= P.v_max - 1e-12) == saturating
+
+
 @pytest.mark.parametrize("lags", [False, True])
 def test_theorem_2_negated_commands_give_the_point_reflected_path(lags):
     """Eq. (7)-(9): same start, opposite speed, negated commands -> x, y negated, theta equal."""

@@ -16,19 +16,21 @@ from scipy.sparse.csgraph import dijkstra
 
 from mirrorpark_env.geometry import ConvexSet
 
+from . import reeds_shepp
+
 
 OCTILE = 1.0 / math.cos(math.pi / 8)  # worst ratio of 8-connected to straight distance
 
 
 class ReedsShepp:
-    """ompl's Reeds-Shepp state space for one turning radius: lengths and sampled paths."""
+    """Reeds-Shepp paths for one turning radius: lengths (ompl) and sampled poses."""
 
     def __init__(self, turning_radius: float):
         if not turning_radius > 0:
             raise ValueError(f"turning_radius: must be > 0 m, got {turning_radius}")
         self.radius = turning_radius
         self.space = ob.ReedsSheppStateSpace(turning_radius)
-        self._a, self._b, self._c = (self.space.allocState() for _ in range(3))
+        self._a, self._b = self.space.allocState(), self.space.allocState()
 
     def _set(self, state, pose) -> None:
         state.setXY(float(pose[0]), float(pose[1]))
@@ -41,18 +43,12 @@ class ReedsShepp:
         return self.space.distance(self._a, self._b)
 
     def sample(self, start, goal, step: float) -> np.ndarray:
-        """Poses (n, 3) along the shortest path, about ``step`` metres apart, ends included."""
-        self._set(self._a, start)
-        self._set(self._b, goal)
-        length = self.space.distance(self._a, self._b)
-        n = max(1, math.ceil(length / step))
-        out = np.empty((n + 1, 3))
-        c = self._c
-        for i in range(n + 1):
-            self.space.interpolate(self._a, self._b, i / n, c)
-            out[i] = (c.getX(), c.getY(), c.getYaw())
-        out[0], out[-1] = start, goal  # exact ends (ompl normalises the yaw)
-        return out
+        """Poses (n, 3) along the shortest path, about ``step`` metres apart, ends included.
+
+        Sampled from the path's segments (``reeds_shepp``): ompl's binding would solve the
+        whole problem again for every pose. ompl's length picks the word.
+        """
+        return reeds_shepp.sample(start, goal, self.radius, step, self.distance(start, goal))
 
 
 class GridDistance:

@@ -108,11 +108,11 @@ class GuideSearch:
             if (best is not None and lb >= best[1]) or checked >= limit:
                 break
             v, tail, _ = tails[k]
-            coarse = self.rs.sample(pose, v, cfg.coarse_step)
-            if not self._clear(coarse, start_gap, gap=0.0):
+            head = self.rs.sample(pose, v, cfg.sample_step)
+            stride = max(1, round(cfg.coarse_step / cfg.sample_step))
+            if not self._clear(head[::stride], start_gap, gap=0.0):  # a cheap first look
                 continue
             checked += 1
-            head = self.rs.sample(pose, v, cfg.sample_step)
             if not self._clear(head, start_gap):
                 continue
             poses = np.concatenate([head, tail[1:]])
