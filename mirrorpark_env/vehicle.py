@@ -146,6 +146,10 @@ class TruthModel:
 
         Columns: x, y, theta, v, a, delta, and the distance travelled in the sub-step.
         """
+        return np.array(self.step_rows(state, a_cmd, delta_cmd))
+
+    def step_rows(self, state, a_cmd: float, delta_cmd: float) -> list[tuple[float, ...]]:
+        """``step`` as a list of row tuples (for closed loops that collect many steps)."""
         p = self.params
         a_cmd, delta_cmd = self.clip_commands(a_cmd, delta_cmd)
         x, y, th, v, a0, d0 = (float(s) for s in state[:6])
@@ -165,7 +169,7 @@ class TruthModel:
             th += dth
             v = v1
             rows.append((x, y, th, v, a_cmd + da * ea1, delta_cmd + dd * ede, abs(chord)))
-        return np.array(rows)
+        return rows
 
     def rollout(self, state, commands) -> np.ndarray:
         """States at the end of every sub-step under a sequence of (a_cmd, delta_cmd), one

@@ -236,29 +236,44 @@ def path(start, goal, radius: float, length: float | None = None) -> tuple[tuple
 def sample(start, goal, radius: float, step: float, length: float | None = None) -> np.ndarray:
     """Poses (n, 3) along the shortest path at equal spacing of at most ``step`` metres,
     ends included (the end exactly ``goal``). ``length``: as for ``path``."""
-    kinds, lengths = path(start, goal, radius, length)
-    # Per segment: start arc length, sign, heading, curvature and the coefficients of
-    # x = A + P sin(th) + Qc d, y = B - P cos(th) + Qs d (d: signed distance into it).
-    coef = np.empty((len(kinds), 9))
-    x, y, th = (float(v) for v in start[:3])
-    s0 = 0.0
-    for i, (kind, ln) in enumerate(zip(kinds, lengths)):
-        if kind == S:
-            coef[i] = s0, math.copysign(1.0, ln), th, 0.0, x, y, 0.0, math.cos(th), math.sin(th)
-            x, y = x + ln * math.cos(th), y + ln * math.sin(th)
-        else:
-            k = kind / radius
-            coef[i] = s0, math.copysign(1.0, ln), th, k, x - math.sin(th) / k, y + math.cos(th) / k, 1.0 / k, 0.0, 0.0
-            th1 = th + k * ln
-            x, y, th = x + (math.sin(th1) - math.sin(th)) / k, y - (math.cos(th1) - math.cos(th)) / k, th1
-        s0 += abs(ln)
-    n = max(1, math.ceil(s0 / step))
-    s = np.linspace(0.0, s0, n + 1)
-    c = coef[np.searchsorted(coef[1:, 0], s, side="right")]
-    d = (s - c[:, 0]) * c[:, 1]
-    out = np.empty((n + 1, 3))
+    return sample_many(start, [goal], radius, step, None if length is None else [length])[0]
+
+
+def sample_many(start, goals, radius: float, step: float, lengths=None) -> list[np.ndarray]:
+    """``sample`` from one start to each of ``goals``, all placed in one vectorised pass."""
+    rows, bounds = [], [0]  # per segment: global arc length at its start, sign, heading,
+    offset = 0.0  # curvature, and x = A + P sin(th) + Qc d, y = B - P cos(th) + Qs d
+    s_all = []
+    x0, y0, th0 = (float(v) for v in start[:3])
+    for g, goal in enumerate(goals):
+        kinds, segs = path(start, goal, radius, None if lengths is None else lengths[g])
+        x, y, th, s0 = x0, y0, th0, offset
+        for kind, ln in zip(kinds, segs):
+            sign = 1.0 if ln >= 0 else -1.0
+            if kind == S:
+                c, s = math.cos(th), math.sin(th)
+                rows.append((s0, sign, th, 0.0, x, y, 0.0, c, s))
+                x, y = x + ln * c, y + ln * s
+            else:
+                k = kind / radius
+                rows.append((s0, sign, th, k, x - math.sin(th) / k, y + math.cos(th) / k, 1.0 / k, 0.0, 0.0))
+                th1 = th + k * ln
+                x, y, th = x + (math.sin(th1) - math.sin(th)) / k, y - (math.cos(th1) - math.cos(th)) / k, th1
+            s0 += abs(ln)
+        total = s0 - offset
+        n = max(1, math.ceil(total / step))
+        s_all.append(offset + np.arange(n + 1) * (total / n))
+        bounds.append(bounds[-1] + n + 1)
+        offset = s0 + 1.0  # paths a metre apart on the common arc-length axis
+    coef = np.array(rows)
+    s_all = np.concatenate(s_all)
+    c = coef[np.searchsorted(coef[1:, 0], s_all, side="right")]
+    d = (s_all - c[:, 0]) * c[:, 1]
+    out = np.empty((len(s_all), 3))
     out[:, 2] = th = c[:, 2] + c[:, 3] * d
     out[:, 0] = c[:, 4] + c[:, 6] * np.sin(th) + c[:, 7] * d
     out[:, 1] = c[:, 5] - c[:, 6] * np.cos(th) + c[:, 8] * d
-    out[0], out[-1] = start[:3], goal[:3]
-    return out
+    parts = np.split(out, bounds[1:-1])
+    for part, goal in zip(parts, goals):
+        part[0], part[-1] = start[:3], goal[:3]
+    return parts

@@ -16,6 +16,7 @@ stop (``hold_command``) once it is within that distance of the segment's end.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -56,6 +57,11 @@ class PathTracker:
         p = path.poses
         ds = np.hypot(*np.diff(p[:, :2], axis=0).T)
         self.s = np.concatenate(([0.0], np.cumsum(ds)))  # arc length along the whole path
+        # Python lists for the per-step scalar look-ups (numpy scalars are slow one by one).
+        self._s = self.s.tolist()
+        self._kappa = path.curvature.tolist()
+        self._gear = path.direction.tolist()
+        self._poses = p[:, :3].tolist()
         self.seg = 0
         self.j = self.segments[0][0] if self.segments else 0
         self.phase = "steer"
@@ -65,8 +71,8 @@ class PathTracker:
         self.e_theta = 0.0
 
     def _kappa_at(self, s: float, i0: int, i1: int) -> float:
-        k = int(np.searchsorted(self.s[i0 : i1 + 1], s)) + i0
-        return float(self.path.curvature[min(max(k, i0 + 1), i1)])
+        k = bisect.bisect_left(self._s, s, i0, i1 + 1)
+        return self._kappa[min(max(k, i0 + 1), i1)]
 
     def command(self, st: VehicleState) -> tuple[float, float]:
         """Acceleration and steering commands [m/s^2, rad] for the measured state."""
@@ -74,9 +80,9 @@ class PathTracker:
         if self.done:
             return self._hold(st, st.delta)
         i0, i1 = self.segments[self.seg]
-        gear = float(self.path.direction[i1])
+        gear = float(self._gear[i1])
         if self.phase == "steer":
-            delta0 = self._steer_for(self._kappa_at(self.s[i0] + 0.1, i0, i1))
+            delta0 = self._steer_for(self._kappa_at(self._s[i0] + 0.1, i0, i1))
             if abs(st.delta - delta0) < cfg.steer_tolerance and abs(st.v) < 0.02:
                 self.phase = "drive"
             else:
@@ -86,7 +92,7 @@ class PathTracker:
         hi = min(i1, self.j + 40)
         d2 = (poses[self.j : hi + 1, 0] - st.x) ** 2 + (poses[self.j : hi + 1, 1] - st.y) ** 2
         self.j = j = self.j + int(np.argmin(d2))
-        xr, yr, thr = poses[j]
+        xr, yr, thr = self._poses[j]
         c, s = math.cos(thr), math.sin(thr)
         dx, dy = st.x - xr, st.y - yr
         along = gear * (c * dx + s * dy)  # progress past sample j in the driving direction
@@ -94,8 +100,8 @@ class PathTracker:
         self.e_theta = math.remainder(st.theta - thr, 2 * math.pi)
         if abs(self.e_y) > cfg.max_lateral_error or abs(self.e_theta) > math.radians(cfg.max_heading_error_deg):
             self.drifted = True
-        s_now = self.s[j] + along
-        remaining = self.s[i1] - s_now
+        s_now = self._s[j] + along
+        remaining = self._s[i1] - s_now
         speed = abs(st.v)
         if self.phase == "drive":
             # Distance the hold law of _hold rolls on from here: 2 tau v + tau^2 a (along the gear).

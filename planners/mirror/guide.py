@@ -26,6 +26,7 @@ import numpy as np
 
 from mirrorpark_env.scenario import ParkingType, ScenarioGeometry
 
+from ..hybrid_astar import reeds_shepp
 from ..hybrid_astar.heuristic import ReedsShepp
 from ..hybrid_astar.search import Path
 from .mirror_line import parallel_dark_point
@@ -98,27 +99,38 @@ class GuideSearch:
                     self._road_tails.append((r, *best))
         return self._road_tails
 
-    def _connect(self, pose, tails, limit: int, start_gap: float | None = None):
+    def _connect(self, pose, tails, limit: int, start_gap: float | None = None, batch: int = 6):
         """Cheapest clear (samples, cost) from ``pose`` through one of ``tails``, checking at
-        most ``limit`` of them in order of their lower bound."""
+        most ``limit`` of them in order of their lower bound.
+
+        Candidates are sampled and checked ``batch`` at a time (one vectorised pass each),
+        then taken in order as if one by one: the result is the sequential search's.
+        """
         cfg = self.cfg
-        options = sorted((self.rs.distance(pose, v) + c, k) for k, (v, _, c) in enumerate(tails))
+        dist = [self.rs.distance(pose, v) for v, _, _ in tails]
+        options = sorted((d + c, d, k) for k, (d, (_, _, c)) in enumerate(zip(dist, tails)))
+        stride = max(1, round(cfg.coarse_step / cfg.sample_step))
         best, checked = None, 0
-        for lb, k in options:
-            if (best is not None and lb >= best[1]) or checked >= limit:
+        for b0 in range(0, len(options), batch):
+            chunk = [o for o in options[b0 : b0 + batch] if best is None or o[0] < best[1]]
+            if not chunk or checked >= limit:
                 break
-            v, tail, _ = tails[k]
-            head = self.rs.sample(pose, v, cfg.sample_step)
-            stride = max(1, round(cfg.coarse_step / cfg.sample_step))
-            if not self._clear(head[::stride], start_gap, gap=0.0):  # a cheap first look
-                continue
-            checked += 1
-            if not self._clear(head, start_gap):
-                continue
-            poses = np.concatenate([head, tail[1:]])
-            cost = self._cost(poses)
-            if best is None or cost < best[1]:
-                best = (poses, cost)
+            heads = reeds_shepp.sample_many(pose, [tails[k][0] for _, _, k in chunk], self.rs.radius,
+                                            cfg.sample_step, [d for _, d, _ in chunk])  # fmt: skip
+            coarse = self._clear_many([h[::stride] for h in heads], start_gap, gap=0.0)  # a cheap first look
+            fine = iter(self._clear_many([h for h, ok in zip(heads, coarse) if ok], start_gap))
+            for (lb, _, k), head, ok in zip(chunk, heads, coarse):
+                if (best is not None and lb >= best[1]) or checked >= limit:
+                    break
+                if not ok:
+                    continue
+                checked += 1
+                if not next(fine):
+                    continue
+                poses = np.concatenate([head, tails[k][1][1:]])
+                cost = self._cost(poses)
+                if best is None or cost < best[1]:
+                    best = (poses, cost)
         return best
 
     # -- costs and checks -------------------------------------------------------------
@@ -150,6 +162,16 @@ class GuideSearch:
 
     def _clear(self, poses: np.ndarray, start_gap: float | None = None, gap: float | None = None) -> bool:
         return bool(np.all(self._gaps(poses) >= self._need(poses, start_gap, gap)))
+
+    def _clear_many(self, paths: list[np.ndarray], start_gap: float | None = None,
+                    gap: float | None = None) -> list[bool]:  # fmt: skip
+        """``_clear`` for paths that all start at the same pose, in one footprint check."""
+        if not paths:
+            return []
+        poses = np.concatenate(paths)
+        bad = self._gaps(poses) < self._need(poses, start_gap, gap)
+        starts = np.cumsum([0] + [len(q) for q in paths[:-1]])
+        return [not b for b in np.logical_or.reduceat(bad, starts)]
 
     def _first_moves(self, pose, start_gap: float) -> list[np.ndarray]:
         """Clear arcs from ``pose``: both gears, full lock either way or straight, 1-3 m."""

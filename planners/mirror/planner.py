@@ -77,6 +77,7 @@ class MirrorPlannerConfig:
     mirror_margin: float = 1.1  # reverse / angle: l_mi >= margin * r_min (1 - cos psi)
     node_limit: int = 3
     kkt_solver: Literal["sparse_ldlt", "sparse_multistage", "auto"] = "auto"  # piqp's (solvers.PiqpQP)
+    qp_tolerance: float = 1e-4  # piqp's absolute residual and duality-gap tolerance (relative: a tenth)
     seed_swings: tuple[float, ...] = (-0.8, -0.4, 0.4, 0.8)  # [rad] heading excursions tried as seeds
     refine_candidates: int = 2  # candidates refined by SCP after the seed search
     time_limit_s: float = 0.5
@@ -120,7 +121,8 @@ class MirrorPlanner:
         self.model = PlanningModel(self.p, cfg.dt, cfg.model_substeps)
         self.coarse = TruthModel(self.p, cfg.dt, cfg.dt / cfg.model_substeps)
         self.truth = TruthModel(self.p, cfg.dt, 0.01)
-        self.qp_backend = PiqpQP(kkt_solver=cfg.kkt_solver)
+        e = cfg.qp_tolerance
+        self.qp_backend = PiqpQP(e, 0.1 * e, kkt_solver=cfg.kkt_solver, eps_gap=(e, 0.1 * e))
         self.miqp = miqp or BranchAndBound(self.qp_backend, cfg.node_limit, cfg.time_limit_s)
         self.line = mirror_line(geometry, margin=cfg.mirror_margin)
         self._goal = np.array(geometry.target, float)  # the goal of the plan being made
@@ -287,16 +289,16 @@ class MirrorPlanner:
         """Roll the planning model out under a path tracker for N steps: the half-step real
         states, the tracker's segment per control step (-1 once done), the pose index reached."""
         tracker = PathTracker(path, self.p, self._tracker_cfg)
-        state = xi0.copy()
-        out, segs, reached = [xi0], [0], [0]
+        state = tuple(float(v) for v in xi0[:6])
+        out, segs, reached = [(*state, 0.0)], [0], [0]
         for _ in range(self.N):
             a, d = tracker.command(VehicleState(*state))
-            sub = self.coarse.step(state, a, d)[:, :6]
+            sub = self.coarse.step_rows(state, a, d)
             out.extend(sub)
-            state = sub[-1]
+            state = sub[-1][:6]
             segs.append(-1 if tracker.done else tracker.seg)
             reached.append(tracker.j)
-        return np.array(out), segs, reached
+        return np.array(out)[:, :6], segs, reached
 
     @property
     def first_direction(self) -> int:

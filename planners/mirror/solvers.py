@@ -115,14 +115,19 @@ class PiqpQP:
     MULTISTAGE_MAX_ROWS = 16  # "auto": multistage up to this many G rows (each has a global slack)
 
     def __init__(self, eps_abs: float = 1e-6, eps_rel: float = 1e-7, max_iter: int = 200,
-                 kkt_solver: str = "sparse_ldlt"):  # fmt: skip
+                 kkt_solver: str = "sparse_ldlt", eps_gap: tuple[float, float] | None = None):  # fmt: skip
         """``kkt_solver``: piqp's; ``sparse_multistage`` exploits variables ordered stage by
         stage, but treats trailing coupling variables (the planner's slacks) as dense: "auto"
-        takes it only for QPs with few G rows (measured: ~1.5 s with 800 slacks)."""
+        takes it only for QPs with few G rows (measured: ~1.5 s with 800 slacks).
+        ``eps_gap``: (abs, rel) duality-gap tolerances; None keeps piqp's (1e-8, 1e-9)."""
         if kkt_solver not in self.KKT_SOLVERS:
             raise ValueError(f"kkt_solver: must be one of {self.KKT_SOLVERS}, got {kkt_solver!r}")
+        for name, v in (("eps_abs", eps_abs), ("eps_rel", eps_rel), *zip(("eps_gap[0]", "eps_gap[1]"), eps_gap or ())):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name}: must be a finite number > 0, got {v!r}")
         self.eps_abs, self.eps_rel, self.max_iter = eps_abs, eps_rel, max_iter
         self.kkt_solver = kkt_solver
+        self.eps_gap = eps_gap
         self._solver: piqp.SparseSolver | None = None
         self._last: QP | None = None
         self.setups = 0
@@ -134,6 +139,8 @@ class PiqpQP:
         s.settings.eps_rel = self.eps_rel
         s.settings.max_iter = self.max_iter
         s.settings.verbose = False
+        if self.eps_gap is not None:
+            s.settings.eps_duality_gap_abs, s.settings.eps_duality_gap_rel = self.eps_gap
         kkt = self.kkt_solver
         if kkt == "auto":
             kkt = "sparse_multistage" if g_rows <= self.MULTISTAGE_MAX_ROWS else "sparse_ldlt"
