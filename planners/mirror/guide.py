@@ -135,10 +135,12 @@ class GuideSearch:
 
     # -- costs and checks -------------------------------------------------------------
     def _cost(self, poses: np.ndarray) -> float:
-        path = Path.from_poses(poses)
-        ds = np.hypot(*np.diff(poses[:, :2], axis=0).T)
-        rev = float(ds[path.direction[1:] < 0].sum())
-        return float(ds.sum()) + self.cfg.reverse_cost * rev + self.cfg.cusp_cost * path.switches
+        """Length, plus extra per metre reversed and per switch (gears as ``Path.from_poses``)."""
+        d = np.diff(poses[:, :2], axis=0)
+        ds = np.hypot(d[:, 0], d[:, 1])
+        back = d[:, 0] * np.cos(poses[:-1, 2]) + d[:, 1] * np.sin(poses[:-1, 2]) < 0
+        switches = int(np.count_nonzero(back[1:] != back[:-1]))
+        return float(ds.sum()) + self.cfg.reverse_cost * float(ds[back].sum()) + self.cfg.cusp_cost * switches
 
     def _gaps(self, poses: np.ndarray) -> np.ndarray:
         return -self.checker.penetration(poses[:, 0], poses[:, 1], poses[:, 2]).max(axis=1)

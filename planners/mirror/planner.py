@@ -63,6 +63,8 @@ class MirrorPlannerConfig:
     w_trust_heading: float = 2.0  # ... and per rad^2 of heading
     converge_position: float = 0.02  # [m] SCP stops when the rollout moves less
     converge_heading: float = 0.01  # [rad]
+    settle_position: float = 0.06  # [m] ... or when a clear rollout ends this close to its goal
+    settle_heading: float = 0.02  # [rad] (0: never)
     w_position: float = 0.2  # running cost per m^2 toward the mirrored target
     w_heading: float = 0.2  # per rad^2
     w_terminal_position: float = 400.0
@@ -423,7 +425,7 @@ class MirrorPlanner:
         st = {"iterations": 0, "qp_solves": 0, "nodes": 0, "status": "failed"}
         paper = cfg.linearisation == "paper"
         if paper:
-            ref_real, ref_u = None, None
+            ref_real, ref_u, ref_pen = None, None, None
             lin = self.model.paper_linearisation(N, 0.5 * (xi0[XI_TH] + theta_t), 1.0 * cand.direction)
         else:
             # Seed: a moving reference of the manoeuvre's shape. (The paper's form,
@@ -431,14 +433,15 @@ class MirrorPlanner:
             # zero; linearising about that standstill would freeze the heading.)
             ref_real = seed if seed is not None else self._seed(xi0, cand)
             ref_u = self._planned_controls(ref_real, cand)
-            ref_merit = self._merit(ref_real, theta_t)
-            if not self._collisions(ref_real, margin=CHECK_MARGIN):
+            ref_pen = self._penetration(ref_real)  # one footprint check per rollout, shared
+            ref_merit = self._merit(ref_real, theta_t, ref_pen)
+            if not self._collisions(ref_real, CHECK_MARGIN, ref_pen):
                 clear_plans.append(self._make_plan(cand, ref_u, ref_real, theta_t, True))  # the seed is a plan too
         trust_scale = 1.0
         for it in range(cfg.max_iterations if iterations is None else iterations):
             st["iterations"] += 1
             if not paper:
-                for i, k in self._collisions(ref_real):  # Algorithm I
+                for i, k in self._collisions(ref_real, 0.0, ref_pen):  # Algorithm I
                     theta_set[(i, k)] = None
                 lin_at = self._to_planned(ref_real, cand)
                 if cand.switch is not None:  # step s starts from the flipped lag states
@@ -462,7 +465,8 @@ class MirrorPlanner:
                 break
             u_planned = x[self.u_index]
             real = self._rollout(xi0, u_planned, cand)
-            hits = self._collisions(real, margin=CHECK_MARGIN)  # closer than that: constrain
+            pen = self._penetration(real)
+            hits = self._collisions(real, CHECK_MARGIN, pen)  # closer than that: constrain
             if not hits:
                 clear_plans.append(self._make_plan(cand, u_planned, real, theta_t, True))
 
@@ -471,16 +475,16 @@ class MirrorPlanner:
                     break
                 for i, k in hits:
                     theta_set[(i, k)] = None
-                ref_real, ref_u = real, u_planned
+                ref_real, ref_u, ref_pen = real, u_planned, pen
                 continue
             for i, k in hits:  # Algorithm I on the new solution too, accepted or not
                 theta_set[(i, k)] = None
-            merit = self._merit(real, theta_t)
+            merit = self._merit(real, theta_t, pen)
             if merit < ref_merit - 1e-6:
                 converged = _converged(real, ref_real, cfg)
-                ref_real, ref_u, ref_merit = real, u_planned, merit
+                ref_real, ref_u, ref_merit, ref_pen = real, u_planned, merit, pen
                 trust_scale = max(trust_scale / 2.0, 0.25)
-                if converged and not hits:
+                if not hits and (converged or self._settled(real, theta_t)):
                     break
             else:
                 trust_scale *= 4.0
@@ -493,16 +497,26 @@ class MirrorPlanner:
         if best is not None:
             st["status"] = "ok"
         elif ref_u is not None:  # no clear plan: the best iterate's safe start, if any
-            hits = self._collisions(ref_real)
+            hits = self._collisions(ref_real, 0.0, ref_pen)
             if hits:
                 st["partial"] = self._safe_prefix(xi0, cand, ref_u, hits, theta_t)
         return best, st
 
-    def _merit(self, real_half: np.ndarray, theta_t: float) -> float:
-        """True cost of a rollout plus the exact penalty on its footprint's penetration."""
+    def _settled(self, real_half: np.ndarray, theta_t: float) -> bool:
+        """The rollout ends standing this close to its goal: another SCP round would only polish it."""
+        _, pos_err, th_err = self._true_cost(real_half[:: self.cfg.model_substeps], theta_t)
+        return pos_err < self.cfg.settle_position and th_err < self.cfg.settle_heading
+
+    def _penetration(self, real_half: np.ndarray) -> np.ndarray:
+        """Footprint penetration of every half step into every obstacle, (2N + 1, K)."""
+        return self.g.checker.penetration(real_half[:, 0], real_half[:, 1], real_half[:, 2])
+
+    def _merit(self, real_half: np.ndarray, theta_t: float, pen: np.ndarray | None = None) -> float:
+        """True cost of a rollout plus the exact penalty on its footprint's penetration
+        (``pen``: its ``_penetration``, if already computed)."""
         cfg = self.cfg
         cost, _, _ = self._true_cost(real_half[:: cfg.model_substeps], theta_t)
-        pen = self.g.checker.penetration(real_half[:, 0], real_half[:, 1], real_half[:, 2]).max(axis=1)
+        pen = (self._penetration(real_half) if pen is None else pen).max(axis=1)
         return cost + cfg.w_slack * float(np.clip(pen + cfg.obstacle_margin, 0, None).sum())
 
     # ------------------------------------------------------------------ cost
@@ -792,9 +806,11 @@ class MirrorPlanner:
         near = np.hypot(poses[:, 0] - x0, poses[:, 1] - y0) < START_RELIEF
         return np.where(near, min(margin, gap0 - START_SLACK), margin)
 
-    def _collisions(self, real_half: np.ndarray, margin: float = 0.0) -> list[tuple[int, int]]:
-        """(step, obstacle) pairs to constrain: steps next to any half step closer than ``margin``."""
-        pen = self.g.checker.penetration(real_half[:, 0], real_half[:, 1], real_half[:, 2])
+    def _collisions(self, real_half: np.ndarray, margin: float = 0.0,
+                    pen: np.ndarray | None = None) -> list[tuple[int, int]]:  # fmt: skip
+        """(step, obstacle) pairs to constrain: steps next to any half step closer than
+        ``margin`` (``pen``: the rollout's ``_penetration``, if already computed)."""
+        pen = self._penetration(real_half) if pen is None else pen
         need = self._clearance(real_half, margin) if margin > 0 else 0.0
         hit = pen > -1e-9 - np.reshape(need, (-1, 1))
         out = set()
