@@ -149,68 +149,44 @@ def _variants(x, y, phi):
     return ((x, y, phi, 1.0, 0), (-x, y, -phi, -1.0, 0), (x, -y, -phi, 1.0, 1), (-x, -y, phi, -1.0, 1))
 
 
-def _candidates(x: float, y: float, phi: float):
-    """Every word that applies, as (word index, lengths in radius units), in ompl's order."""
+# ompl's order of trial: (base word, on the backward problem?, first word index, weight of
+# |u| in the length, fixed length, lengths from (t, u, v)). Families: CSC, CCC, CCCC, CCSC, CCSCC.
+_H = _HALF_PI
+_FAMILIES = (
+    (_lpsplp, False, 14, 1.0, 0.0, lambda t, u, v: (t, u, v)),
+    (_lpsprp, False, 12, 1.0, 0.0, lambda t, u, v: (t, u, v)),
+    (_lprml, False, 0, 1.0, 0.0, lambda t, u, v: (t, u, v)),
+    (_lprml, True, 0, 1.0, 0.0, lambda t, u, v: (v, u, t)),
+    (_lprupluml, False, 2, 2.0, 0.0, lambda t, u, v: (t, u, -u, v)),
+    (_lprumlump, False, 2, 2.0, 0.0, lambda t, u, v: (t, u, u, v)),
+    (_lprmsmlm, False, 4, 1.0, _H, lambda t, u, v: (t, -_H, u, v)),
+    (_lprmsmrm, False, 8, 1.0, _H, lambda t, u, v: (t, -_H, u, v)),
+    (_lprmsmlm, True, 6, 1.0, _H, lambda t, u, v: (v, u, -_H, t)),
+    (_lprmsmrm, True, 10, 1.0, _H, lambda t, u, v: (v, u, -_H, t)),
+    (_lprmslmrp, False, 16, 1.0, 2 * _H, lambda t, u, v: (t, -_H, u, -_H, v)),
+)
 
-    # CSC
-    for xx, yy, pp, sg, refl in _variants(x, y, phi):
-        r = _lpsplp(xx, yy, pp)
-        if r:
-            yield (14 + refl, tuple(sg * v for v in r))
-    for xx, yy, pp, sg, refl in _variants(x, y, phi):
-        r = _lpsprp(xx, yy, pp)
-        if r:
-            yield (12 + refl, tuple(sg * v for v in r))
-    # CCC, forwards then backwards
-    for xx, yy, pp, sg, refl in _variants(x, y, phi):
-        r = _lprml(xx, yy, pp)
-        if r:
-            yield (0 + refl, tuple(sg * v for v in r))
-    xb = x * math.cos(phi) + y * math.sin(phi)
-    yb = x * math.sin(phi) - y * math.cos(phi)
-    for xx, yy, pp, sg, refl in _variants(xb, yb, phi):
-        r = _lprml(xx, yy, pp)
-        if r:
+
+def _solve(x: float, y: float, phi: float, target: float | None):
+    """(word index, lengths in radius units) of the shortest path: every word that applies,
+    in ompl's order (ties go to the first); with the optimal length ``target`` known, the
+    first word that attains it."""
+    c, s = math.cos(phi), math.sin(phi)
+    forward = _variants(x, y, phi)
+    backward = _variants(x * c + y * s, x * s - y * c, phi)
+    best, best_total = None, math.inf
+    for word, back, index, wu, fixed, order in _FAMILIES:
+        for xx, yy, pp, sg, refl in backward if back else forward:
+            r = word(xx, yy, pp)
+            if r is None:
+                continue
             t, u, v = r
-            yield (0 + refl, (sg * v, sg * u, sg * t))
-    # CCCC
-    for xx, yy, pp, sg, refl in _variants(x, y, phi):
-        r = _lprupluml(xx, yy, pp)
-        if r:
-            t, u, v = r
-            yield (2 + refl, (sg * t, sg * u, -sg * u, sg * v))
-    for xx, yy, pp, sg, refl in _variants(x, y, phi):
-        r = _lprumlump(xx, yy, pp)
-        if r:
-            t, u, v = r
-            yield (2 + refl, (sg * t, sg * u, sg * u, sg * v))
-    # CCSC, forwards then backwards
-    for xx, yy, pp, sg, refl in _variants(x, y, phi):
-        r = _lprmsmlm(xx, yy, pp)
-        if r:
-            t, u, v = r
-            yield (4 + refl, (sg * t, -sg * _HALF_PI, sg * u, sg * v))
-    for xx, yy, pp, sg, refl in _variants(x, y, phi):
-        r = _lprmsmrm(xx, yy, pp)
-        if r:
-            t, u, v = r
-            yield (8 + refl, (sg * t, -sg * _HALF_PI, sg * u, sg * v))
-    for xx, yy, pp, sg, refl in _variants(xb, yb, phi):
-        r = _lprmsmlm(xx, yy, pp)
-        if r:
-            t, u, v = r
-            yield (6 + refl, (sg * v, sg * u, -sg * _HALF_PI, sg * t))
-    for xx, yy, pp, sg, refl in _variants(xb, yb, phi):
-        r = _lprmsmrm(xx, yy, pp)
-        if r:
-            t, u, v = r
-            yield (10 + refl, (sg * v, sg * u, -sg * _HALF_PI, sg * t))
-    # CCSCC
-    for xx, yy, pp, sg, refl in _variants(x, y, phi):
-        r = _lprmslmrp(xx, yy, pp)
-        if r:
-            t, u, v = r
-            yield (16 + refl, (sg * t, -sg * _HALF_PI, sg * u, -sg * _HALF_PI, sg * v))
+            total = abs(t) + wu * abs(u) + abs(v) + fixed
+            if total < best_total:
+                best, best_total = (index + refl, tuple(sg * w for w in order(t, u, v))), total
+                if target is not None and abs(total - target) <= 1e-9 * (1.0 + target):
+                    return best
+    return best
 
 
 def path(start, goal, radius: float, length: float | None = None) -> tuple[tuple[int, ...], tuple[float, ...]]:
@@ -220,14 +196,7 @@ def path(start, goal, radius: float, length: float | None = None) -> tuple[tuple
     x0, y0, th0 = (float(v) for v in start[:3])
     dx, dy = (float(goal[0]) - x0) / radius, (float(goal[1]) - y0) / radius
     c, s = math.cos(th0), math.sin(th0)
-    target = None if length is None else length / radius
-    best, best_total = None, math.inf
-    for word, lengths in _candidates(c * dx + s * dy, -s * dx + c * dy, float(goal[2]) - th0):
-        total = sum(abs(v) for v in lengths)
-        if total < best_total:
-            best, best_total = (word, lengths), total
-            if target is not None and abs(total - target) <= 1e-9 * (1.0 + target):
-                break
+    best = _solve(c * dx + s * dy, -s * dx + c * dy, float(goal[2]) - th0, None if length is None else length / radius)
     if best is None:  # cannot happen for finite input: some CSC or CCC word always applies
         raise ValueError(f"no Reeds-Shepp path from {tuple(start)} to {tuple(goal)}")
     return _WORDS[best[0]], tuple(radius * v for v in best[1])
@@ -262,18 +231,19 @@ def sample_many(start, goals, radius: float, step: float, lengths=None) -> list[
             s0 += abs(ln)
         total = s0 - offset
         n = max(1, math.ceil(total / step))
-        s_all.append(offset + np.arange(n + 1) * (total / n))
+        s_all.append((offset, total / n, n + 1))
         bounds.append(bounds[-1] + n + 1)
         offset = s0 + 1.0  # paths a metre apart on the common arc-length axis
     coef = np.array(rows)
-    s_all = np.concatenate(s_all)
+    offsets, spacing, counts = (np.array(v) for v in zip(*s_all))
+    first = np.asarray(bounds[:-1])
+    s_all = np.repeat(offsets, counts) + (np.arange(bounds[-1]) - np.repeat(first, counts)) * np.repeat(spacing, counts)
     c = coef[np.searchsorted(coef[1:, 0], s_all, side="right")]
     d = (s_all - c[:, 0]) * c[:, 1]
     out = np.empty((len(s_all), 3))
     out[:, 2] = th = c[:, 2] + c[:, 3] * d
     out[:, 0] = c[:, 4] + c[:, 6] * np.sin(th) + c[:, 7] * d
     out[:, 1] = c[:, 5] - c[:, 6] * np.cos(th) + c[:, 8] * d
-    parts = np.split(out, bounds[1:-1])
-    for part, goal in zip(parts, goals):
-        part[0], part[-1] = start[:3], goal[:3]
-    return parts
+    out[first] = np.asarray(start, float)[:3]  # exact ends
+    out[np.asarray(bounds[1:]) - 1] = np.asarray(goals, float)[:, :3]
+    return np.split(out, bounds[1:-1])
