@@ -210,12 +210,21 @@ def sample(start, goal, radius: float, step: float, length: float | None = None)
 
 def sample_many(start, goals, radius: float, step: float, lengths=None) -> list[np.ndarray]:
     """``sample`` from one start to each of ``goals``, all placed in one vectorised pass."""
+    paths = [path(start, goal, radius, None if lengths is None else lengths[g]) for g, goal in enumerate(goals)]
+    return place(start, goals, paths, radius, step)
+
+
+def place(start, goals, paths, radius: float, step: float) -> list[np.ndarray]:
+    """Poses along ``paths`` (as ``path`` returns them) from ``start`` to each of ``goals``,
+    at most ``step`` apart, in one vectorised pass (a path solved once can be sampled at
+    several spacings)."""
+    if not paths:
+        return []
     rows, bounds = [], [0]  # per segment: global arc length at its start, sign, heading,
     offset = 0.0  # curvature, and x = A + P sin(th) + Qc d, y = B - P cos(th) + Qs d
     s_all = []
     x0, y0, th0 = (float(v) for v in start[:3])
-    for g, goal in enumerate(goals):
-        kinds, segs = path(start, goal, radius, None if lengths is None else lengths[g])
+    for kinds, segs in paths:
         x, y, th, s0 = x0, y0, th0, offset
         for kind, ln in zip(kinds, segs):
             sign = 1.0 if ln >= 0 else -1.0

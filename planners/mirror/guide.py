@@ -109,23 +109,27 @@ class GuideSearch:
         cfg = self.cfg
         dist = [self.rs.distance(pose, v) for v, _, _ in tails]
         options = sorted((d + c, d, k) for k, (d, (_, _, c)) in enumerate(zip(dist, tails)))
-        stride = max(1, round(cfg.coarse_step / cfg.sample_step))
+        r = self.rs.radius
         best, checked = None, 0
         for b0 in range(0, len(options), batch):
             chunk = [o for o in options[b0 : b0 + batch] if best is None or o[0] < best[1]]
             if not chunk or checked >= limit:
                 break
-            heads = reeds_shepp.sample_many(pose, [tails[k][0] for _, _, k in chunk], self.rs.radius,
-                                            cfg.sample_step, [d for _, d, _ in chunk])  # fmt: skip
-            coarse = self._clear_many([h[::stride] for h in heads], start_gap, gap=0.0)  # a cheap first look
-            fine = iter(self._clear_many([h for h, ok in zip(heads, coarse) if ok], start_gap))
-            for (lb, _, k), head, ok in zip(chunk, heads, coarse):
+            vias = [tails[k][0] for _, _, k in chunk]
+            paths = [reeds_shepp.path(pose, v, r, d) for v, (_, d, _) in zip(vias, chunk)]
+            coarse = reeds_shepp.place(pose, vias, paths, r, cfg.coarse_step)
+            ok = self._clear_many(coarse, start_gap, gap=0.0)  # a cheap first look (most fail it)
+            passed = [i for i in range(len(chunk)) if ok[i]]
+            fine = reeds_shepp.place(pose, [vias[i] for i in passed], [paths[i] for i in passed], r, cfg.sample_step)
+            heads = dict(zip(passed, zip(fine, self._clear_many(fine, start_gap))))
+            for i, (lb, _, k) in enumerate(chunk):
                 if (best is not None and lb >= best[1]) or checked >= limit:
                     break
-                if not ok:
+                if not ok[i]:
                     continue
                 checked += 1
-                if not next(fine):
+                head, clear = heads[i]
+                if not clear:
                     continue
                 poses = np.concatenate([head, tails[k][1][1:]])
                 cost = self._cost(poses)
