@@ -98,7 +98,7 @@ def test_qp_solution_satisfies_dynamics_and_bounds():
     pl = MirrorPlanner(g)
     xi0 = g.start.as_array()
     cand = Candidate(-1, 30)
-    _, c = pl._cost(cand, 0.0)
+    c = pl._cost(cand, 0.0)
     ref = pl._seed(xi0, cand)
     lin_at = pl._to_planned(ref, cand)
     lin_at[30] = FLIP @ lin_at[30]

@@ -205,13 +205,7 @@ def path(start, goal, radius: float, length: float | None = None) -> tuple[tuple
 def sample(start, goal, radius: float, step: float, length: float | None = None) -> np.ndarray:
     """Poses (n, 3) along the shortest path at equal spacing of at most ``step`` metres,
     ends included (the end exactly ``goal``). ``length``: as for ``path``."""
-    return sample_many(start, [goal], radius, step, None if length is None else [length])[0]
-
-
-def sample_many(start, goals, radius: float, step: float, lengths=None) -> list[np.ndarray]:
-    """``sample`` from one start to each of ``goals``, all placed in one vectorised pass."""
-    paths = [path(start, goal, radius, None if lengths is None else lengths[g]) for g, goal in enumerate(goals)]
-    return place(start, goals, paths, radius, step)
+    return place(start, [goal], [path(start, goal, radius, length)], radius, step)[0]
 
 
 def place(start, goals, paths, radius: float, step: float) -> list[np.ndarray]:

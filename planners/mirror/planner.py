@@ -145,7 +145,7 @@ class MirrorPlanner:
                           (np.array([0.0, 1.0]), hw), (np.array([0.0, -1.0]), hw))  # fmt: skip
         N = self.N
         # Variables stage by stage (xi_0, u_0, xi_1, u_1, ..., xi_N), then S: the layout
-        # piqp's multistage KKT solver exploits (measured: half the time of its default).
+        # piqp's multistage KKT solver exploits (docs/mirror_planner.md, "Sparse QP").
         self.iS = (NX + NU) * N + NX
         self.nz = self.iS + 2
         self.x_index = (NX + NU) * np.arange(N + 1)[:, None] + np.arange(NX)  # z[x_index]: (N + 1, NX)
@@ -418,7 +418,7 @@ class MirrorPlanner:
         """
         cfg, N = self.cfg, self.N
         theta_t = _unwrap_near(self._goal[2], xi0[XI_TH])
-        _, c = self._cost(cand, theta_t)
+        c = self._cost(cand, theta_t)
         theta_set: dict[tuple[int, int], None] = {}
         best: Plan | None = None
         clear_plans: list[Plan] = []  # clear on the planning model; verified on the truth model at the end
@@ -520,18 +520,21 @@ class MirrorPlanner:
         return cost + cfg.w_slack * float(np.clip(pen + cfg.obstacle_margin, 0, None).sum())
 
     # ------------------------------------------------------------------ cost
-    def _cost(self, cand: Candidate, theta_t: float):
-        """P, c of sum w * residual^2 (piqp: 1/2 z'Pz + c'z); P is built once per switch step."""
-        L, w, P, kinds, _ = self._cost_entry(cand.switch)
+    def _cost(self, cand: Candidate, theta_t: float) -> np.ndarray:
+        """c of sum w * residual^2 (piqp: 1/2 z'Pz + c'z); P's pattern is built once per
+        switch step (``_cost_entry``) and filled by ``_build``."""
+        L, w, kinds, _ = self._cost_entry(cand.switch)
         kappa = 1.0 if cand.switch is not None else 0.0
         tx, ty, _ = self._goal
         k0 = np.zeros(len(w))  # residual = p_i - 2 kappa S - (1 - 2 kappa) goal
         k0[kinds == 1] = -(1 - 2 * kappa) * tx
         k0[kinds == 2] = -(1 - 2 * kappa) * ty
         k0[kinds == 3] = -theta_t
-        return P, 2.0 * (L.T @ (w * k0))
+        return 2.0 * (L.T @ (w * k0))
 
     def _cost_entry(self, s: int | None):
+        """(L, w, residual kinds, (P's pattern with the trust penalty, P's values, trust's
+        values)) for switch step ``s``, built once per config and shared by episodes."""
         if s not in self._cost_cache:
             self._cost_cache[s] = self._cost_pattern(Candidate(1, s))
         return self._cost_cache[s]
@@ -570,7 +573,7 @@ class MirrorPlanner:
         pattern = CscPattern(np.concatenate([Pc.row, T.row]), np.concatenate([Pc.col, T.col]), P.shape)
         zp, zt = np.zeros(Pc.nnz), np.zeros(T.nnz)
         with_trust = (pattern, np.concatenate([Pc.data, zt]), np.concatenate([zp, T.data]))
-        return L, w, P, np.asarray(kinds), with_trust
+        return L, w, np.asarray(kinds), with_trust
 
     def _trust_diag(self) -> sp.csc_matrix:
         cfg = self.cfg
@@ -626,7 +629,7 @@ class MirrorPlanner:
         g_rows = np.concatenate([g_rows, np.arange(n_s)])
         g_cols = np.concatenate([g_cols, self.nz + np.arange(n_s)])
         G = sp.csc_matrix((np.concatenate([g_vals, np.ones(n_s)]), (g_rows, g_cols)), shape=(n_s, nz))
-        pattern, p_vals, t_vals = self._cost_entry(s)[4]
+        pattern, p_vals, t_vals = self._cost_entry(s)[3]
         P = pattern.matrix(p_vals + (trust_scale if trust else 0.0) * t_vals, (nz, nz))
         A = self._eq_pattern(s).matrix(vals, (self._n_dyn_rows + 2, nz))
         c = np.concatenate([c, np.full(n_s, cfg.w_slack)])
