@@ -62,6 +62,8 @@ class PathTracker:
         self._kappa = path.curvature.tolist()
         self._gear = path.direction.tolist()
         self._poses = p[:, :3].tolist()
+        self._x, self._y = p[:, 0].tolist(), p[:, 1].tolist()
+        self._max_heading_error = math.radians(self.cfg.max_heading_error_deg)
         self.seg = 0
         self.j = self.segments[0][0] if self.segments else 0
         self.phase = "steer"
@@ -76,58 +78,66 @@ class PathTracker:
 
     def command(self, st: VehicleState) -> tuple[float, float]:
         """Acceleration and steering commands [m/s^2, rad] for the measured state."""
+        return self.command_at(st.x, st.y, st.theta, st.v, st.a, st.delta)
+
+    def command_at(self, x: float, y: float, theta: float, v: float, a: float, delta: float) -> tuple[float, float]:
+        """``command`` on the state's components (closed loops that keep them as floats)."""
         p, cfg = self.params, self.cfg
         if self.done:
-            return self._hold(st, st.delta)
+            return self._hold(v, a, delta)
         i0, i1 = self.segments[self.seg]
         gear = float(self._gear[i1])
         if self.phase == "steer":
             delta0 = self._steer_for(self._kappa_at(self._s[i0] + 0.1, i0, i1))
-            if abs(st.delta - delta0) < cfg.steer_tolerance and abs(st.v) < 0.02:
+            if abs(delta - delta0) < cfg.steer_tolerance and abs(v) < 0.02:
                 self.phase = "drive"
             else:
-                return self._hold(st, delta0)
-        # Nearest path sample ahead of the last one, within this segment.
-        poses = self.path.poses
-        hi = min(i1, self.j + 40)
-        d2 = (poses[self.j : hi + 1, 0] - st.x) ** 2 + (poses[self.j : hi + 1, 1] - st.y) ** 2
-        self.j = j = self.j + int(np.argmin(d2))
+                return self._hold(v, a, delta0)
+        # Nearest path sample ahead of the last one, within this segment (the first of equals).
+        j, hi = self.j, min(i1, self.j + 40)
+        xs, ys = self._x, self._y
+        best = (xs[j] - x) ** 2 + (ys[j] - y) ** 2
+        for k in range(j + 1, hi + 1):
+            d2 = (xs[k] - x) ** 2 + (ys[k] - y) ** 2
+            if d2 < best:
+                best, j = d2, k
+        self.j = j
         xr, yr, thr = self._poses[j]
         c, s = math.cos(thr), math.sin(thr)
-        dx, dy = st.x - xr, st.y - yr
+        dx, dy = x - xr, y - yr
         along = gear * (c * dx + s * dy)  # progress past sample j in the driving direction
         self.e_y = -s * dx + c * dy
-        self.e_theta = math.remainder(st.theta - thr, 2 * math.pi)
-        if abs(self.e_y) > cfg.max_lateral_error or abs(self.e_theta) > math.radians(cfg.max_heading_error_deg):
+        self.e_theta = math.remainder(theta - thr, 2 * math.pi)
+        if abs(self.e_y) > cfg.max_lateral_error or abs(self.e_theta) > self._max_heading_error:
             self.drifted = True
         s_now = self._s[j] + along
         remaining = self._s[i1] - s_now
-        speed = abs(st.v)
+        speed = abs(v)
         if self.phase == "drive":
             # Distance the hold law of _hold rolls on from here: 2 tau v + tau^2 a (along the gear).
-            roll = 2.0 * p.tau_a * speed + p.tau_a**2 * gear * st.a
+            roll = 2.0 * p.tau_a * speed + p.tau_a**2 * gear * a
             if remaining <= max(roll, 0.005):
                 self.phase = "stop"
         if self.phase == "stop":
-            if speed < 0.01 and abs(st.a) < 0.2:
-                return self._next_segment(st)
-            return self._hold(st, st.delta)
+            if speed < 0.01 and abs(a) < 0.2:
+                return self._next_segment(x, y, theta, v, a, delta)
+            return self._hold(v, a, delta)
         kappa_ref = self._kappa_at(s_now + speed * p.tau_delta + 0.05, i0, i1)
         kappa = kappa_ref - self.e_y / cfg.preview**2 - gear * 2.0 * self.e_theta / cfg.preview
-        delta = self._steer_for(kappa)
+        steer = self._steer_for(kappa)
         room = max(remaining - 2.0 * p.tau_a * speed, 0.0)
         v_ref = min(cfg.cruise_speed, math.sqrt(2.0 * cfg.decel * room), speed + cfg.accel * 0.5 + 0.1)
-        a = cfg.speed_gain * (gear * v_ref - st.v)
-        return max(p.a_min, min(p.a_max, a)), delta
+        acc = cfg.speed_gain * (gear * v_ref - v)
+        return max(p.a_min, min(p.a_max, acc)), steer
 
-    def _next_segment(self, st: VehicleState) -> tuple[float, float]:
+    def _next_segment(self, *state: float) -> tuple[float, float]:
         if self.seg + 1 >= len(self.segments):
             self.done = True
-            return self._hold(st, st.delta)
+            return self._hold(state[3], state[4], state[5])
         self.seg += 1
         self.j = self.segments[self.seg][0]
         self.phase = "steer"
-        return self.command(st)
+        return self.command_at(*state)
 
     def _clip_steer(self, delta: float) -> float:
         return max(-self.params.max_steer, min(self.params.max_steer, delta))
@@ -135,9 +145,10 @@ class PathTracker:
     def _steer_for(self, kappa: float) -> float:
         return self._clip_steer(math.atan(self.params.wheelbase * kappa))
 
-    def _hold(self, st: VehicleState, delta: float) -> tuple[float, float]:
+    def _hold(self, v: float, a: float, delta: float) -> tuple[float, float]:
         """Brake to a stand (or stay there) while steering to ``delta``."""
-        return hold_command(self.params, st), self._clip_steer(delta)
+        p = self.params
+        return max(p.a_min, min(p.a_max, -(v / p.tau_a + a))), self._clip_steer(delta)
 
 
 def hold_command(p: VehicleParams, st: VehicleState) -> float:

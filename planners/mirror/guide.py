@@ -99,12 +99,16 @@ class GuideSearch:
                     self._road_tails.append((r, *best))
         return self._road_tails
 
-    def _connect(self, pose, tails, limit: int, start_gap: float | None = None, batch: int = 6):
+    def _connect(self, pose, tails, limit: int, start_gap: float | None = None, batch: int = 16,
+                 bound: float = math.inf):  # fmt: skip
         """Cheapest clear (samples, cost) from ``pose`` through one of ``tails``, checking at
-        most ``limit`` of them in order of their lower bound.
+        most ``limit`` of them in order of their lower bound; candidates whose lower bound
+        reaches ``bound`` (a guide already found) are not looked at.
 
         Candidates are sampled and checked ``batch`` at a time (one vectorised pass each),
-        then taken in order as if one by one: the result is the sequential search's.
+        then taken in order as if one by one: the result is the sequential search's. (Per
+        call numpy's overhead outweighs the surplus work: measured on 434 searches, one
+        run, median 2.6 ms at 6, 2.0 ms at 16 and 24.)
         """
         cfg = self.cfg
         dist = [self.rs.distance(pose, v) for v, _, _ in tails]
@@ -112,7 +116,7 @@ class GuideSearch:
         r = self.rs.radius
         best, checked = None, 0
         for b0 in range(0, len(options), batch):
-            chunk = [o for o in options[b0 : b0 + batch] if best is None or o[0] < best[1]]
+            chunk = [o for o in options[b0 : b0 + batch] if o[0] < (bound if best is None else best[1])]
             if not chunk or checked >= limit:
                 break
             vias = [tails[k][0] for _, _, k in chunk]
@@ -123,7 +127,7 @@ class GuideSearch:
             fine = reeds_shepp.place(pose, [vias[i] for i in passed], [paths[i] for i in passed], r, cfg.sample_step)
             heads = dict(zip(passed, zip(fine, self._clear_many(fine, start_gap))))
             for i, (lb, _, k) in enumerate(chunk):
-                if (best is not None and lb >= best[1]) or checked >= limit:
+                if lb >= (bound if best is None else best[1]) or checked >= limit:
                     break
                 if not ok[i]:
                     continue
@@ -249,7 +253,8 @@ class GuideSearch:
         direct = self.rs.sample(pose, self.target, cfg.sample_step)
         if self._clear(direct, start_gap):
             best = Guide(Path.from_poses(direct), self._cost(direct), -1)
-        found = self._connect(pose, self._tails, cfg.max_checked, start_gap)
+        found = self._connect(pose, self._tails, cfg.max_checked, start_gap,
+                              bound=best.cost if best is not None else math.inf)  # fmt: skip
         if found is not None and (best is None or found[1] < best.cost):
             best = Guide(Path.from_poses(found[0]), found[1], 0)
         if best is None:  # set up in the road first

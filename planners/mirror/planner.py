@@ -293,10 +293,10 @@ class MirrorPlanner:
         tracker = PathTracker(path, self.p, self._tracker_cfg)
         state = tuple(float(v) for v in xi0[:6])
         out, segs, reached = [(*state, 0.0)], [0], [0]
+        command, step = tracker.command_at, self.coarse.step_rows
         for _ in range(self.N):
-            a, d = tracker.command(VehicleState(*state))
-            sub = self.coarse.step_rows(state, a, d)
-            out.extend(sub)
+            sub = step(state, *command(*state))
+            out += sub
             state = sub[-1][:6]
             segs.append(-1 if tracker.done else tracker.seg)
             reached.append(tracker.j)
