@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import gymnasium as gym
@@ -218,6 +219,34 @@ def test_guide_runs_from_the_start_to_the_target_clear_of_obstacles(case_id):
     steps = np.hypot(*np.diff(poses[:, :2], axis=0).T)
     assert steps.max() <= search.cfg.sample_step + 1e-6
     assert _shapely_gap(g, poses[1:]) >= search.cfg.gap - 1e-6
+
+
+@pytest.mark.parametrize("case_id", EASY_CASES)
+def test_guide_batches_give_the_one_by_one_result_and_the_bound_prunes(case_id):
+    """Checking candidates 16 at a time returns the sequential search's guide, from the
+    start and from poses along it; a bound at or below every lower bound looks at none."""
+    from planners.mirror.guide import GuideSearch
+
+    env = gym.make("MirrorPark-v0").unwrapped
+    _, info = env.reset(options={"scenario": case_id})
+    g = info["geometry"]
+    search = GuideSearch(g)
+    s = g.start
+    start = np.array([s.x, s.y, s.theta])
+    poses = [start] + list(search.search(start).path.poses[5::15])
+    gap = lambda q: float(search._gaps(np.asarray(q)[None])[0])  # noqa: E731
+    found = 0
+    for q, limit in itertools.product(poses, (2, 24)):  # a binding limit, and the planner's
+        one = search._connect(q, search._tails, limit, gap(q), batch=1)
+        many = search._connect(q, search._tails, limit, gap(q), batch=16)
+        assert (one is None) == (many is None)
+        if one is not None:
+            found += 1
+            # (one pass places several paths on a shared arc-length axis: rounding differs)
+            assert many[1] == pytest.approx(one[1], abs=1e-9)
+            assert many[0].shape == one[0].shape and np.allclose(many[0], one[0], atol=1e-9)
+        assert search._connect(q, search._tails, 24, gap(q), bound=0.0) is None
+    assert found > 0
 
 
 def test_parallel_switch_pose_is_a_forward_arc_from_the_target():
