@@ -151,8 +151,7 @@ class TruthModel:
     def step_rows(self, state, a_cmd: float, delta_cmd: float) -> list[tuple[float, ...]]:
         """``step`` as a list of row tuples (for closed loops that collect many steps)."""
         p = self.params
-        a_cmd = min(max(a_cmd, p.a_min), p.a_max)  # clip_commands, inline: closed loops call this often
-        delta_cmd = min(max(delta_cmd, -p.max_steer), p.max_steer)
+        a_cmd, delta_cmd = self.clip_commands(a_cmd, delta_cmd)
         x, y, th, v, a0, d0 = map(float, state[:6])
         h, inv_l, v_min, v_max, dv_lag = self.h, 1.0 / p.wheelbase, p.v_min, p.v_max, self._dv_lag
         da, dd = a0 - a_cmd, d0 - delta_cmd

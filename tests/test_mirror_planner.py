@@ -234,7 +234,10 @@ def test_guide_batches_give_the_one_by_one_result_and_the_bound_prunes(case_id):
     s = g.start
     start = np.array([s.x, s.y, s.theta])
     poses = [start] + list(search.search(start).path.poses[5::15])
-    gap = lambda q: float(search._gaps(np.asarray(q)[None])[0])  # noqa: E731
+
+    def gap(q):
+        return float(search._gaps(np.asarray(q)[None])[0])
+
     found = 0
     for q, limit in itertools.product(poses, (2, 24)):  # a binding limit, and the planner's
         one = search._connect(q, search._tails, limit, gap(q), batch=1)

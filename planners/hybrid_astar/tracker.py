@@ -130,14 +130,14 @@ class PathTracker:
         acc = cfg.speed_gain * (gear * v_ref - v)
         return max(p.a_min, min(p.a_max, acc)), steer
 
-    def _next_segment(self, *state: float) -> tuple[float, float]:
+    def _next_segment(self, x: float, y: float, theta: float, v: float, a: float, delta: float) -> tuple[float, float]:
         if self.seg + 1 >= len(self.segments):
             self.done = True
-            return self._hold(state[3], state[4], state[5])
+            return self._hold(v, a, delta)
         self.seg += 1
         self.j = self.segments[self.seg][0]
         self.phase = "steer"
-        return self.command_at(*state)
+        return self.command_at(x, y, theta, v, a, delta)
 
     def _clip_steer(self, delta: float) -> float:
         return max(-self.params.max_steer, min(self.params.max_steer, delta))
@@ -147,14 +147,18 @@ class PathTracker:
 
     def _hold(self, v: float, a: float, delta: float) -> tuple[float, float]:
         """Brake to a stand (or stay there) while steering to ``delta``."""
-        p = self.params
-        return max(p.a_min, min(p.a_max, -(v / p.tau_a + a))), self._clip_steer(delta)
+        return hold_accel(self.params, v, a), self._clip_steer(delta)
 
 
 def hold_command(p: VehicleParams, st: VehicleState) -> float:
-    """Acceleration command that brings the car to a stand without rolling back.
+    """Acceleration command that brings the car to a stand without rolling back."""
+    return hold_accel(p, st.v, st.a)
+
+
+def hold_accel(p: VehicleParams, v: float, a: float) -> float:
+    """``hold_command`` for speed ``v`` and actual acceleration ``a``.
 
     With the acceleration lag tau, a_cmd = -(v / tau + a) makes the speed critically
     damped (double pole at -1/tau): from speed v0 it rolls on 2 tau v0 + tau^2 a0.
     """
-    return max(p.a_min, min(p.a_max, -(st.v / p.tau_a + st.a)))
+    return max(p.a_min, min(p.a_max, -(v / p.tau_a + a)))
