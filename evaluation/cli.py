@@ -24,9 +24,14 @@ def cmd_grid(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
+    from .mirror_demo import mirror_demo
 
     for name, path in run_demo(Path(args.out)).items():
         print(f"wrote {path}  ({name})")
+    for e in mirror_demo(Path(args.out), tuple(args.types)):
+        verdict = "parked" if e.success else "NOT parked"
+        print(f"mirror planner, {e.case_id}: {verdict}, {e.switches} switches, {e.parking_time_s:.1f} s, "
+              f"{e.plans} plans; wrote {e.figure} and {e.animation}")  # fmt: skip
     return 0
 
 
@@ -118,8 +123,11 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--json", action="store_true", help="print the counts as one JSON object")
     g.add_argument("--config", help="a grid YAML file (default: configs/grid.yaml)")
     g.set_defaults(func=cmd_grid)
-    d = sub.add_parser("demo", help="render one scene per parking type and a scripted episode to PNG")
+    d = sub.add_parser("demo", help="render one scene per parking type and a scripted episode to PNG; "
+                                    "drive the mirror planner once per type (Fig. 19-like PNG and a GIF)")  # fmt: skip
     d.add_argument("--out", default="out/demo", help="output folder (default: out/demo)")
+    d.add_argument("--types", nargs="+", default=["parallel", "reverse", "angle"],
+                   choices=["parallel", "reverse", "angle"], help="parking types the mirror planner drives")  # fmt: skip
     d.set_defaults(func=cmd_demo)
 
     def case_args(p: argparse.ArgumentParser) -> None:

@@ -1,8 +1,8 @@
-"""Demo: render one scenario per parking type and one scripted parking episode to PNG.
+"""Demo of the environment: one scenario per parking type and one scripted episode, as PNG.
 
-Until planners land this shows the environment itself: the three scene types at their
-start, and a closed-loop episode where a hand-written speed controller reverses a car
-straight down into a reverse slot and stops, which the ISO check accepts.
+The three scene types at their start, and a closed-loop episode where a hand-written
+speed controller reverses a car straight down into a reverse slot and stops, which the
+ISO check accepts. (The planner's demo is ``mirror_demo``; ``mirrorpark demo`` runs both.)
 """
 
 from __future__ import annotations

@@ -53,15 +53,21 @@ class Policy(ABC):
         return self.stats[-1].status if self.stats else "none"
 
 
-def run_episode(env, policy: Policy, scenario=None, seed: int | None = None, max_steps: int = 100_000):
-    """Roll ``policy`` out in ``env`` for one episode; return (last info, steps)."""
+def run_episode(env, policy: Policy, scenario=None, seed: int | None = None, max_steps: int = 100_000,
+                trace: list[dict] | None = None):  # fmt: skip
+    """Roll ``policy`` out in ``env`` for one episode; return (last info, steps).
+    ``trace``, if given, receives the info of the reset and of every step."""
     options = {"scenario": scenario} if scenario is not None else None
     obs, info = env.reset(seed=seed, options=options)
     policy.reset(info["geometry"])
+    if trace is not None:
+        trace.append(info)
     steps = 0
     while steps < max_steps:
         obs, _, terminated, truncated, info = env.step(policy.act(obs, info))
         steps += 1
+        if trace is not None:
+            trace.append(info)
         if terminated or truncated or (policy.gave_up and info["stopped"]):
             break
     return info, steps

@@ -205,3 +205,17 @@ def test_store_rolls_the_journal_into_parquet_parts(tmp_path):
     store.append({"planner": "p", "case_id": "c0", "success": False})  # a later row for a case wins
     df = ResultStore(tmp_path).table().set_index("case_id")
     assert len(df) == 7 and not df.loc["c0", "success"]
+
+
+def test_mirror_demo_writes_its_figure_and_animation(tmp_path):
+    from PIL import Image
+
+    from evaluation.mirror_demo import DEMO_CASES, mirror_demo
+
+    (e,) = mirror_demo(tmp_path, ("angle",), every=20)
+    assert e.case_id == DEMO_CASES["angle"].case_id and e.success and e.plans >= 1
+    assert e.figure == tmp_path / "mirror_angle.png" and e.figure.stat().st_size > 10_000
+    with Image.open(e.animation) as gif:
+        assert gif.n_frames >= 5  # ~16 s driven, a frame every 2 s
+    with pytest.raises(ValueError, match="types"):
+        mirror_demo(tmp_path, ("diagonal",))
