@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+PARKING_TYPES = ["parallel", "reverse", "angle"]  # choices of every parking-type option
+
 
 def cmd_grid(args: argparse.Namespace) -> int:
     from mirrorpark_env.config import GridConfig, default_grid, load
@@ -126,8 +128,8 @@ def build_parser() -> argparse.ArgumentParser:
     d = sub.add_parser("demo", help="render one scene per parking type and a scripted episode to PNG; "
                                     "drive the mirror planner once per type (Fig. 19-like PNG and a GIF)")  # fmt: skip
     d.add_argument("--out", default="out/demo", help="output folder (default: out/demo)")
-    d.add_argument("--types", nargs="+", default=["parallel", "reverse", "angle"],
-                   choices=["parallel", "reverse", "angle"], help="parking types the mirror planner drives")  # fmt: skip
+    d.add_argument("--types", nargs="+", default=PARKING_TYPES, choices=PARKING_TYPES,
+                   help="parking types the mirror planner drives")  # fmt: skip
     d.set_defaults(func=cmd_demo)
 
     def case_args(p: argparse.ArgumentParser) -> None:
@@ -135,7 +137,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="grid sample: smoke (30 per type), standard (500 per type), full (70,434)")  # fmt: skip
         p.add_argument("--cases", help="a JSON or CSV file of cases (fields: parking_type, road_width, "
                        "slot_length, slot_width, theta0_deg, y0); overrides --sample")  # fmt: skip
-        p.add_argument("--types", nargs="+", choices=["parallel", "reverse", "angle"], help="only these parking types")
+        p.add_argument("--types", nargs="+", choices=PARKING_TYPES, help="only these parking types")
         p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -172,7 +174,7 @@ def build_parser() -> argparse.ArgumentParser:
     t = sub.add_parser("train-rl", help="train the RL baseline (SAC/TQC + HER); needs the rl extra")
     t.add_argument("--algo", choices=["sac", "tqc"], default=None, help="default: configs/rl.yaml (sac)")
     t.add_argument("--steps", type=int, default=None, help="environment steps (default: configs/rl.yaml)")
-    t.add_argument("--parking-type", nargs="+", choices=["parallel", "reverse", "angle"], default=None,
+    t.add_argument("--parking-type", nargs="+", choices=PARKING_TYPES, default=None,
                    dest="parking_types", help="train on these types (default: all three)")  # fmt: skip
     t.add_argument("--config", default=None, help="hyper-parameter YAML (default: configs/rl.yaml)")
     t.add_argument("--no-curriculum", action="store_true", help="draw from all cases from the start")

@@ -23,6 +23,8 @@ from planners.mirror.mirror_line import mirrored_target
 from planners.mirror.planner import Plan
 from planners.mirror.policy import MirrorPolicy
 
+from .report import _plt
+
 # One standard-sample case per type in which a plan holds its switch (many plans switch
 # only at their ends, where the mirror has nothing to show): Fig. 19-like manoeuvres.
 DEMO_CASES = {
@@ -105,12 +107,9 @@ def _plan_goal(plan: Plan, g: ScenarioGeometry) -> tuple[float, float, float]:
 
 
 def _figure(g: ScenarioGeometry, states: np.ndarray, plans: list[Plan], info: dict, path: Path) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.patches import Polygon
 
+    plt = _plt()
     fig, ax = plt.subplots(figsize=(9, 6))
     focus = [_focus(g, states)]
     colours = plt.get_cmap("tab10").colors
@@ -152,13 +151,10 @@ def _figure(g: ScenarioGeometry, states: np.ndarray, plans: list[Plan], info: di
 
 def _animation(g: ScenarioGeometry, states: np.ndarray, times: list[float], path: Path, fps: int,
                every: int) -> Path:  # fmt: skip
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.animation import FuncAnimation, PillowWriter
     from matplotlib.patches import Polygon
 
+    plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     _scene(ax, g, _focus(g, states))
     trail, = ax.plot([], [], "-", color="k", lw=1)  # fmt: skip
