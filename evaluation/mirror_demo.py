@@ -125,16 +125,15 @@ def _figure(g: ScenarioGeometry, states: np.ndarray, plans: list[Plan], info: di
                                  label=f"plan {k + 1}: its goal mirrored through the switch point"))  # fmt: skip
             ax.plot(*plan.switch_point, "o", color=c, ms=5)
             focus.append(corners)
-    if plans:
+    if plans:  # drawn before _scene, which sets the view (to include the line's point nearest the target)
         line = plans[0].mirror
         n = np.array(line.normal)
-        base = np.array(line.target_xy) + line.distance * n  # the line's point nearest the target
+        base = np.array(line.target_xy) + line.distance * n
         focus.append(base[None])
-    _scene(ax, g, np.concatenate(focus))
-    if plans:
         ends = base + np.outer([-60.0, 60.0], [-n[1], n[0]])
         what = "mirror line" if line.fixed else "mirror line (switch at least this far out)"
         ax.plot(ends[:, 0], ends[:, 1], "-" if line.fixed else "-.", color="tab:purple", lw=1.0, label=what)
+    _scene(ax, g, np.concatenate(focus))
     ax.plot(states[:, 0], states[:, 1], "-", color="k", lw=1.6, label="driven (rear axle)")
     for k in range(0, len(states), 10):  # a footprint every 10 control steps
         ax.add_patch(Polygon(footprint(g.vehicle, *states[k]), closed=True, fill=False, edgecolor="0.2", lw=0.5,
