@@ -69,7 +69,9 @@ def run(planners: list[str], case_ids: list[str], env_steps: int = 5000) -> dict
     for a in names:
         for b in names:
             if a < b:
-                ratios[f"{a}/{b} plan_ms_median"] = res["planners"][a]["plan_ms_median"] / res["planners"][b]["plan_ms_median"]
+                ratios[f"{a}/{b} plan_ms_median"] = (
+                    res["planners"][a]["plan_ms_median"] / res["planners"][b]["plan_ms_median"]
+                )
     res["ratios"] = ratios
     res["case_ids"] = case_ids
     return res

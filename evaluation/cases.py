@@ -57,9 +57,14 @@ def load_case_file(path: str | Path) -> list[Scenario]:
             raise ValueError(f"{p}: case {n}: unknown field(s) {', '.join(extra)}; allowed: {', '.join(CASE_FIELDS)}")
         try:
             sc = Scenario.from_degrees(
-                row["parking_type"], row["road_width"], row["slot_length"], row["slot_width"],
-                row["theta0_deg"], row["y0"], row.get("start_x_offset", 0.0) or 0.0,
-            )  # fmt: skip
+                row["parking_type"],
+                row["road_width"],
+                row["slot_length"],
+                row["slot_width"],
+                row["theta0_deg"],
+                row["y0"],
+                row.get("start_x_offset", 0.0) or 0.0,
+            )
             sc.build()  # impossible geometry is rejected here, with the field named
         except ValueError as err:
             raise ValueError(f"{p}: case {n}: {err}") from None

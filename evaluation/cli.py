@@ -32,8 +32,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
         print(f"wrote {path}  ({name})")
     for e in mirror_demo(Path(args.out), tuple(args.types)):
         verdict = "parked" if e.success else "NOT parked"
-        print(f"mirror planner, {e.case_id}: {verdict}, {e.switches} switches, {e.parking_time_s:.1f} s, "
-              f"{e.plans} plans; wrote {e.figure} and {e.animation}")  # fmt: skip
+        print(
+            f"mirror planner, {e.case_id}: {verdict}, {e.switches} switches, {e.parking_time_s:.1f} s, "
+            f"{e.plans} plans; wrote {e.figure} and {e.animation}"
+        )
     return 0
 
 
@@ -52,8 +54,15 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
     scenarios = _cases(args)
     out = Path(args.out)
-    store = evaluate(args.planner, scenarios, out, workers=args.workers, backend=args.backend,
-                     ray_address=args.address, progress=not args.quiet)  # fmt: skip
+    store = evaluate(
+        args.planner,
+        scenarios,
+        out,
+        workers=args.workers,
+        backend=args.backend,
+        ray_address=args.address,
+        progress=not args.quiet,
+    )
     df = read_results([out])
     ids = {sc.case_id for sc in scenarios}
     df = df[df["case_id"].isin(ids) & (df["planner"] == args.planner)]
@@ -63,8 +72,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     else:
         r = s["success_rate"]
         pct = lambda v: "n/a" if v is None else f"{100 * v:.1f} %"  # noqa: E731
-        print(f"{args.planner}: {s['cases']} cases, success {pct(r['all'])} (parallel {pct(r['parallel'])}, "
-              f"reverse {pct(r['reverse'])}, angle {pct(r['angle'])}); results in {store.parquet}")  # fmt: skip
+        print(
+            f"{args.planner}: {s['cases']} cases, success {pct(r['all'])} (parallel {pct(r['parallel'])}, "
+            f"reverse {pct(r['reverse'])}, angle {pct(r['angle'])}); results in {store.parquet}"
+        )
     return 0
 
 
@@ -110,8 +121,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
     else:
         print(f"env: {res['env_steps_per_s']['median']:.0f} steps/s (median)")
         for p, r in res["planners"].items():
-            print(f"{p}: plan ms median {r['plan_ms_median']}, p95 {r['plan_ms_p95']} over {r['calls']} calls, "
-                  f"{r['successes']}/{r['cases']} parked")  # fmt: skip
+            print(
+                f"{p}: plan ms median {r['plan_ms_median']}, p95 {r['plan_ms_p95']} over {r['calls']} calls, "
+                f"{r['successes']}/{r['cases']} parked"
+            )
         for k, v in res["ratios"].items():
             print(f"{k}: {v:.2f}")
     return 0
@@ -125,26 +138,44 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--json", action="store_true", help="print the counts as one JSON object")
     g.add_argument("--config", help="a grid YAML file (default: configs/grid.yaml)")
     g.set_defaults(func=cmd_grid)
-    d = sub.add_parser("demo", help="render one scene per parking type and a scripted episode to PNG; "
-                                    "drive the mirror planner once per type (Fig. 19-like PNG and a GIF)")  # fmt: skip
+    d = sub.add_parser(
+        "demo",
+        help="render one scene per parking type and a scripted episode to PNG; "
+        "drive the mirror planner once per type (Fig. 19-like PNG and a GIF)",
+    )
     d.add_argument("--out", default="out/demo", help="output folder (default: out/demo)")
-    d.add_argument("--types", nargs="+", default=PARKING_TYPES, choices=PARKING_TYPES,
-                   help="parking types the mirror planner drives")  # fmt: skip
+    d.add_argument(
+        "--types",
+        nargs="+",
+        default=PARKING_TYPES,
+        choices=PARKING_TYPES,
+        help="parking types the mirror planner drives",
+    )
     d.set_defaults(func=cmd_demo)
 
     def case_args(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--sample", default="smoke", choices=["smoke", "standard", "full"],
-                       help="grid sample: smoke (30 per type), standard (500 per type), full (70,434)")  # fmt: skip
-        p.add_argument("--cases", help="a JSON or CSV file of cases (fields: parking_type, road_width, "
-                       "slot_length, slot_width, theta0_deg, y0); overrides --sample")  # fmt: skip
+        p.add_argument(
+            "--sample",
+            default="smoke",
+            choices=["smoke", "standard", "full"],
+            help="grid sample: smoke (30 per type), standard (500 per type), full (70,434)",
+        )
+        p.add_argument(
+            "--cases",
+            help="a JSON or CSV file of cases (fields: parking_type, road_width, "
+            "slot_length, slot_width, theta0_deg, y0); overrides --sample",
+        )
         p.add_argument("--types", nargs="+", choices=PARKING_TYPES, help="only these parking types")
         p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
 
     e = sub.add_parser("evaluate", help="run a planner over grid cases; resumable")
-    e.add_argument("--planner", required=True,
-                   help="mirror, mirror-paper, hybrid-astar, or rl:PATH (a model.zip from train-rl; "
-                   "loading it runs pickled code: name only files you trust)")  # fmt: skip
+    e.add_argument(
+        "--planner",
+        required=True,
+        help="mirror, mirror-paper, hybrid-astar, or rl:PATH (a model.zip from train-rl; "
+        "loading it runs pickled code: name only files you trust)",
+    )
     case_args(e)
     e.add_argument("--backend", default="local", choices=["local", "ray"])
     e.add_argument("--address", default=None, help="Ray cluster address (default: start a local Ray)")
@@ -174,8 +205,14 @@ def build_parser() -> argparse.ArgumentParser:
     t = sub.add_parser("train-rl", help="train the RL baseline (SAC/TQC + HER); needs the rl extra")
     t.add_argument("--algo", choices=["sac", "tqc"], default=None, help="default: configs/rl.yaml (sac)")
     t.add_argument("--steps", type=int, default=None, help="environment steps (default: configs/rl.yaml)")
-    t.add_argument("--parking-type", nargs="+", choices=PARKING_TYPES, default=None,
-                   dest="parking_types", help="train on these types (default: all three)")  # fmt: skip
+    t.add_argument(
+        "--parking-type",
+        nargs="+",
+        choices=PARKING_TYPES,
+        default=None,
+        dest="parking_types",
+        help="train on these types (default: all three)",
+    )
     t.add_argument("--config", default=None, help="hyper-parameter YAML (default: configs/rl.yaml)")
     t.add_argument("--no-curriculum", action="store_true", help="draw from all cases from the start")
     t.add_argument("--seed", type=int, default=None)
@@ -199,8 +236,9 @@ def cmd_train_rl(args: argparse.Namespace) -> int:
             import sb3_contrib  # noqa: F401
         from planners.rl.train import train
     except ImportError as err:
-        raise ValueError(f"train-rl needs the rl extra ({err.name} is missing): "
-                         "pip install torch==2.13.0 && pip install -e '.[rl]'") from None  # fmt: skip
+        raise ValueError(
+            f"train-rl needs the rl extra ({err.name} is missing): pip install torch==2.13.0 && pip install -e '.[rl]'"
+        ) from None
     summary = train(cfg, args.out)
     print(json.dumps({k: v for k, v in summary.items() if k != "config"}))
     print(f"model: {Path(args.out) / 'model.zip'}  (evaluate it with --planner rl:{Path(args.out) / 'model.zip'})")
@@ -210,7 +248,9 @@ def cmd_train_rl(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if getattr(args, "func", None) is cmd_evaluate and args.out is None:
-        args.out = f"results/{args.planner.replace(':', '_').replace('/', '_')}-{'cases' if args.cases else args.sample}"
+        args.out = (
+            f"results/{args.planner.replace(':', '_').replace('/', '_')}-{'cases' if args.cases else args.sample}"
+        )
     try:
         return args.func(args)
     except ValueError as err:  # bad input: one clear line, no traceback

@@ -115,11 +115,20 @@ def headline(df: pd.DataFrame, planner: str, baseline: str | None) -> list[dict[
             ("parking time", "parking_time_change_pct", change_pct(a["mean_parking_time_s"], b["mean_parking_time_s"])),
         ]
     else:
-        rows += [(name, key, None) for name, key in (("success rate", "success_gain_pct"), ("ODD size", "odd_gain_pct"),
-                 ("direction switches", "switch_change_pct"), ("parking time", "parking_time_change_pct"))]  # fmt: skip
+        rows += [
+            (name, key, None)
+            for name, key in (
+                ("success rate", "success_gain_pct"),
+                ("ODD size", "odd_gain_pct"),
+                ("direction switches", "switch_change_pct"),
+                ("parking time", "parking_time_change_pct"),
+            )
+        ]
     rows += [
         ("mean switches (successes)", "mean_switches", s["mean_switches"]),
         ("mean parking time [s] (successes)", "mean_parking_time_s", s["mean_parking_time_s"]),
         ("mean planning time [ms]", "mean_plan_time_ms", s["plan_time_ms"]["mean"]),
     ]
-    return [{"measure": name, "paper": PAPER[key], "ours": val, "relative": key.endswith("pct")} for name, key, val in rows]
+    return [
+        {"measure": name, "paper": PAPER[key], "ours": val, "relative": key.endswith("pct")} for name, key, val in rows
+    ]

@@ -48,8 +48,9 @@ class DemoEpisode:
     animation: Path
 
 
-def mirror_demo(out: Path, types: tuple[str, ...] = tuple(DEMO_CASES), fps: int = 8,
-                every: int = 5) -> list[DemoEpisode]:  # fmt: skip
+def mirror_demo(
+    out: Path, types: tuple[str, ...] = tuple(DEMO_CASES), fps: int = 8, every: int = 5
+) -> list[DemoEpisode]:
     """Plan and drive one demo case per type in ``types``; write ``mirror_<type>.png`` and
     ``mirror_<type>.gif`` (a frame every ``every`` control steps, ``fps`` frames/s)."""
     unknown = [t for t in types if t not in DEMO_CASES]
@@ -68,8 +69,18 @@ def mirror_demo(out: Path, types: tuple[str, ...] = tuple(DEMO_CASES), fps: int 
         times = [i["parking_time"] for i in trace]
         fig_path = _figure(g, states, policy.plans, info, out / f"mirror_{t}.png")
         gif_path = _animation(g, states, times, out / f"mirror_{t}.gif", fps, every)
-        done.append(DemoEpisode(t, DEMO_CASES[t].case_id, bool(info["is_success"]), int(info["direction_switches"]),
-                                float(info["parking_time"]), len(policy.plans), fig_path, gif_path))  # fmt: skip
+        done.append(
+            DemoEpisode(
+                t,
+                DEMO_CASES[t].case_id,
+                bool(info["is_success"]),
+                int(info["direction_switches"]),
+                float(info["parking_time"]),
+                len(policy.plans),
+                fig_path,
+                gif_path,
+            )
+        )
     env.close()
     return done
 
@@ -82,8 +93,9 @@ def _scene(ax, g: ScenarioGeometry, focus: np.ndarray | None = None) -> None:
     for poly in g.obstacles.polygons:
         ax.add_patch(Polygon(poly, closed=True, facecolor="0.8", edgecolor="0.5", lw=0.8))
     ax.add_patch(Polygon(g.slot, closed=True, fill=False, edgecolor="0.4", ls=":", lw=1))
-    ax.add_patch(Polygon(footprint(g.vehicle, *g.target), closed=True, fill=False, edgecolor="tab:green", lw=1.5,
-                         label="target"))  # fmt: skip
+    ax.add_patch(
+        Polygon(footprint(g.vehicle, *g.target), closed=True, fill=False, edgecolor="tab:green", lw=1.5, label="target")
+    )
     x0, x1, y0, y1 = g.bounds
     if focus is not None:
         lo, hi = focus.min(axis=0) - 2.0, focus.max(axis=0) + 2.0
@@ -115,14 +127,29 @@ def _figure(g: ScenarioGeometry, states: np.ndarray, plans: list[Plan], info: di
     colours = plt.get_cmap("tab10").colors
     for k, plan in enumerate(plans):
         c = colours[k % len(colours)]
-        ax.plot(plan.planned_states[:, 0], plan.planned_states[:, 1], "--", color=c, lw=1.4,
-                label=f"plan {k + 1}, as planned (one direction)")  # fmt: skip
+        ax.plot(
+            plan.planned_states[:, 0],
+            plan.planned_states[:, 1],
+            "--",
+            color=c,
+            lw=1.4,
+            label=f"plan {k + 1}, as planned (one direction)",
+        )
         focus.append(plan.planned_states[:, :2])
         if plan.switch_point is not None:
             mirrored = mirrored_target(_plan_goal(plan, g), plan.switch_point)
             corners = footprint(g.vehicle, *mirrored)
-            ax.add_patch(Polygon(corners, closed=True, fill=False, edgecolor=c, ls="--", lw=1.0,
-                                 label=f"plan {k + 1}: its goal mirrored through the switch point"))  # fmt: skip
+            ax.add_patch(
+                Polygon(
+                    corners,
+                    closed=True,
+                    fill=False,
+                    edgecolor=c,
+                    ls="--",
+                    lw=1.0,
+                    label=f"plan {k + 1}: its goal mirrored through the switch point",
+                )
+            )
             ax.plot(*plan.switch_point, "o", color=c, ms=5)
             focus.append(corners)
     if plans:  # drawn before _scene, which sets the view (to include the line's point nearest the target)
@@ -136,27 +163,30 @@ def _figure(g: ScenarioGeometry, states: np.ndarray, plans: list[Plan], info: di
     _scene(ax, g, np.concatenate(focus))
     ax.plot(states[:, 0], states[:, 1], "-", color="k", lw=1.6, label="driven (rear axle)")
     for k in range(0, len(states), 10):  # a footprint every 10 control steps
-        ax.add_patch(Polygon(footprint(g.vehicle, *states[k]), closed=True, fill=False, edgecolor="0.2", lw=0.5,
-                             alpha=0.4))  # fmt: skip
+        ax.add_patch(
+            Polygon(footprint(g.vehicle, *states[k]), closed=True, fill=False, edgecolor="0.2", lw=0.5, alpha=0.4)
+        )
     ax.add_patch(Polygon(footprint(g.vehicle, *states[-1]), closed=True, fill=False, edgecolor="k", lw=1.5))
     verdict = "parked" if info["is_success"] else "not parked"
-    ax.set_title(f"{g.scenario.case_id}: {verdict}, {info['direction_switches']} switches, "
-                 f"{info['parking_time']:.1f} s, {len(plans)} plans (dots: switch points)", fontsize=9)  # fmt: skip
+    ax.set_title(
+        f"{g.scenario.case_id}: {verdict}, {info['direction_switches']} switches, "
+        f"{info['parking_time']:.1f} s, {len(plans)} plans (dots: switch points)",
+        fontsize=9,
+    )
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, framealpha=0.9)
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
 
 
-def _animation(g: ScenarioGeometry, states: np.ndarray, times: list[float], path: Path, fps: int,
-               every: int) -> Path:  # fmt: skip
+def _animation(g: ScenarioGeometry, states: np.ndarray, times: list[float], path: Path, fps: int, every: int) -> Path:
     from matplotlib.animation import FuncAnimation, PillowWriter
     from matplotlib.patches import Polygon
 
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     _scene(ax, g, _focus(g, states))
-    trail, = ax.plot([], [], "-", color="k", lw=1)  # fmt: skip
+    (trail,) = ax.plot([], [], "-", color="k", lw=1)
     car = Polygon(footprint(g.vehicle, *states[0]), closed=True, facecolor="tab:blue", alpha=0.6, edgecolor="k")
     ax.add_patch(car)
     frames = list(range(0, len(states), every))

@@ -91,7 +91,10 @@ def fig_efficiency(df, planners, out: Path) -> Path:
     plt = _plt()
     fig, axes = plt.subplots(1, 2, figsize=(11, 3.5))
     ok = df[df["success"].fillna(False).astype(bool)]
-    for ax, col, label in ((axes[0], "switches", "direction switches"), (axes[1], "parking_time_s", "parking time [s]")):
+    for ax, col, label in (
+        (axes[0], "switches", "direction switches"),
+        (axes[1], "parking_time_s", "parking time [s]"),
+    ):
         data, labels = [], []
         for t in TYPES:
             for p in planners:
@@ -138,40 +141,100 @@ def write_report(df: pd.DataFrame, out: str | Path, baseline: str | None = None)
         baseline = "hybrid-astar" if "hybrid-astar" in planners else None
     main = "mirror" if "mirror" in planners else planners[0]
     figs = [fig_success_by_type(df, planners, out)]
-    figs.append(_per_type_lines(df, planners, "road_width", out, "success_vs_road_width.png",
-                                "Success vs road width (paper Fig. 21)", lambda t: "road width [m]"))  # fmt: skip
-    figs.append(_per_type_lines(df, planners, lambda t: SLOT[t], out, "sensitivity_slot.png",
-                                "Sensitivity to slot size (paper Fig. 23, column I)", lambda t: f"{SLOT[t]} [m]"))  # fmt: skip
-    figs.append(_per_type_lines(df, planners, "y0", out, "sensitivity_y0.png",
-                                "Sensitivity to the distance to the slot y0 (Fig. 23, II)", lambda t: "y0 [m]"))  # fmt: skip
-    figs.append(_per_type_lines(df, planners, "y1", out, "sensitivity_y1.png",
-                                "Sensitivity to the distance to the road boundary y1 (Fig. 23, III)", lambda t: "y1 [m]"))  # fmt: skip
+    figs.append(
+        _per_type_lines(
+            df,
+            planners,
+            "road_width",
+            out,
+            "success_vs_road_width.png",
+            "Success vs road width (paper Fig. 21)",
+            lambda t: "road width [m]",
+        )
+    )
+    figs.append(
+        _per_type_lines(
+            df,
+            planners,
+            lambda t: SLOT[t],
+            out,
+            "sensitivity_slot.png",
+            "Sensitivity to slot size (paper Fig. 23, column I)",
+            lambda t: f"{SLOT[t]} [m]",
+        )
+    )
+    figs.append(
+        _per_type_lines(
+            df,
+            planners,
+            "y0",
+            out,
+            "sensitivity_y0.png",
+            "Sensitivity to the distance to the slot y0 (Fig. 23, II)",
+            lambda t: "y0 [m]",
+        )
+    )
+    figs.append(
+        _per_type_lines(
+            df,
+            planners,
+            "y1",
+            out,
+            "sensitivity_y1.png",
+            "Sensitivity to the distance to the road boundary y1 (Fig. 23, III)",
+            lambda t: "y1 [m]",
+        )
+    )
     sizes = odd_size(df)
     figs += [fig_odd(df, planners, t, out, sizes) for t in TYPES if (df["parking_type"] == t).any()]
     figs.append(fig_efficiency(df, planners, out))
     figs.append(fig_plan_time(df, planners, out))
 
     lines = ["# MirrorPark evaluation report", ""]
-    lines += [f"Cases: {df['case_id'].nunique()} ({', '.join(f'{t}: {(df[df.parking_type == t].case_id.nunique())}' for t in TYPES)}); planners: {', '.join(planners)}.", ""]
-    lines += ["## Summary", "", "| planner | cases | success all | parallel | reverse | angle | switches | parking time [s] | plan ms median | p95 | setup ms | ODD cells |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    per_type = ", ".join(f"{t}: {df[df.parking_type == t].case_id.nunique()}" for t in TYPES)
+    lines += [
+        f"Cases: {df['case_id'].nunique()} ({per_type});"
+        f" planners: {', '.join(planners)}.",
+        "",
+    ]
+    lines += [
+        "## Summary",
+        "",
+        "| planner | cases | success all | parallel | reverse | angle | switches | parking time [s] | plan ms median"
+        " | p95 | setup ms | ODD cells |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for p in planners:
         s = summary(df, p)
         r = s["success_rate"]
         pct = lambda v: "n/a" if v is None else f"{100 * v:.1f} %"  # noqa: E731
         lines.append(
-            f"| {p} | {s['cases']} | {pct(r['all'])} | {pct(r['parallel'])} | {pct(r['reverse'])} | {pct(r['angle'])} | "
+            f"| {p} | {s['cases']} | {pct(r['all'])} | {pct(r['parallel'])} | {pct(r['reverse'])} | {pct(r['angle'])}"
+            " | "
             f"{_fmt(s['mean_switches'])} | {_fmt(s['mean_parking_time_s'])} | {_fmt(s['plan_time_ms']['median'])} | "
             f"{_fmt(s['plan_time_ms']['p95'])} | {_fmt(s['setup_ms']['median'])} | {sizes.get(p, {}).get('all', 0)} |"
         )
-    lines += ["", "Plan ms: per planning call, pooled. Setup ms: median per episode of the policy's "
-              "preparation at reset (what depends on the slot alone), not counted in plan ms."]
-    lines += ["", f"## The paper's headline comparisons ({main} vs {baseline or 'no baseline in these results'})", "",
-              "| measure | paper | ours |", "|---|---|---|"]  # fmt: skip
+    lines += [
+        "",
+        "Plan ms: per planning call, pooled. Setup ms: median per episode of the policy's "
+        "preparation at reset (what depends on the slot alone), not counted in plan ms.",
+    ]
+    lines += [
+        "",
+        f"## The paper's headline comparisons ({main} vs {baseline or 'no baseline in these results'})",
+        "",
+        "| measure | paper | ours |",
+        "|---|---|---|",
+    ]
     for h in headline(df, main, baseline):
         paper = f"{h['paper']:+.1f} %" if h["relative"] else f"{h['paper']:g}"
         lines.append(f"| {h['measure']} | {paper} | {_fmt(h['ours'], h['relative'])} |")
-    lines += ["", "Relative changes compare the two planners on the cases both ran. The paper's planning time "
-              "is a mean on an i7-9750H with Gurobi; ours is the pooled mean of every planning call here.", ""]  # fmt: skip
+    lines += [
+        "",
+        "Relative changes compare the two planners on the cases both ran. The paper's planning time "
+        "is a mean on an i7-9750H with Gurobi; ours is the pooled mean of every planning call here.",
+        "",
+    ]
     failures = df[~df["success"].fillna(False).astype(bool)]
     if len(failures):
         lines += ["## Failures by first failing criterion", "", "| planner | criterion | cases |", "|---|---|---|"]

@@ -83,8 +83,13 @@ def run_case(planner: str, case_id: str) -> dict[str, Any]:
         for m in MARGINS:
             row[m] = float(info["margins"].get(m, math.nan))
     except Exception as err:  # noqa: BLE001  (any failure of one case must not stop the run)
-        row.update(success=False, failed_criterion="error", planner_status="error",
-                   error=f"{type(err).__name__}: {err}", traceback=traceback.format_exc(limit=5))  # fmt: skip
+        row.update(
+            success=False,
+            failed_criterion="error",
+            planner_status="error",
+            error=f"{type(err).__name__}: {err}",
+            traceback=traceback.format_exc(limit=5),
+        )
     row["episode_wall_s"] = time.perf_counter() - t0
     return row
 

@@ -42,9 +42,7 @@ class VehicleConfig(_Strict):
     @model_validator(mode="after")
     def _front_beyond_axle(self) -> VehicleConfig:
         if self.front_length <= self.wheelbase:
-            raise ValueError(
-                f"front_length ({self.front_length}) must exceed wheelbase ({self.wheelbase})"
-            )
+            raise ValueError(f"front_length ({self.front_length}) must exceed wheelbase ({self.wheelbase})")
         return self
 
 
@@ -122,9 +120,7 @@ class EnvConfig(_Strict):
     substep: float = Field(0.01, gt=0, le=0.02)
     criteria: CriteriaConfig = CriteriaConfig()
     reward: RewardConfig = RewardConfig()
-    parking_types: list[ParkingTypeName] = Field(
-        default_factory=lambda: ["parallel", "reverse", "angle"], min_length=1
-    )
+    parking_types: list[ParkingTypeName] = Field(default_factory=lambda: ["parallel", "reverse", "angle"], min_length=1)
     scene_margin: float = Field(25.0, ge=5, le=200)
     render: RenderConfig = RenderConfig()
     vehicle: VehicleConfig = VehicleConfig()

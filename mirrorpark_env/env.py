@@ -53,8 +53,12 @@ class MirrorParkEnv(AbstractEnv):
         # this env brings its own truth model, so only gym.Env's constructor runs.
         gym.Env.__init__(self)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode: must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.cfg: EnvConfig = config if isinstance(config, EnvConfig) else merge(default_env(), config, "MirrorPark-v0 config")
+            raise ValueError(
+                f"render_mode: must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"
+            )
+        self.cfg: EnvConfig = (
+            config if isinstance(config, EnvConfig) else merge(default_env(), config, "MirrorPark-v0 config")
+        )
         self.params = VehicleParams.from_config(self.cfg.vehicle)
         self.model = TruthModel(self.params, self.cfg.dt, self.cfg.substep)
         self.render_mode = render_mode
@@ -239,8 +243,11 @@ class MirrorParkEnv(AbstractEnv):
             dpos = math.hypot(ax - dx, ay - dy) * POS_SCALE
             dth = abs(math.atan2(as_ * dc - ac * ds_, ac * dc + as_ * ds_))
             reached = dpos <= r.goal_position_tol and dth <= self._heading_tol
-            return (-(dpos + r.heading_weight * dth) / r.distance_scale + r.success_bonus * reached
-                    + r.collision_penalty * bool(info.get("collision", False)))  # fmt: skip
+            return (
+                -(dpos + r.heading_weight * dth) / r.distance_scale
+                + r.success_bonus * reached
+                + r.collision_penalty * bool(info.get("collision", False))
+            )
         ag = np.asarray(achieved_goal, dtype=float)
         dg = np.asarray(desired_goal, dtype=float)
         dpos = np.hypot(ag[..., 0] - dg[..., 0], ag[..., 1] - dg[..., 1]) * POS_SCALE

@@ -101,7 +101,6 @@ class FootprintChecker:
         self._k, self._v = k, v
         nx = obstacles.normals[..., 0].reshape(-1)
         ny = obstacles.normals[..., 1].reshape(-1)
-        kv = k * v
         self._n = np.stack([nx, ny])  # (2, KV): a point's coordinate along each normal
         self._m = np.block([[nx, ny], [ny, -nx]])  # (2, 2KV): [cos, sin] -> (u.n, v.n)
         self._pmin = obstacles.proj_min.reshape(-1)

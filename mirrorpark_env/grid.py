@@ -121,8 +121,9 @@ class Grid:
     def filter(self, parking_type: str | ParkingType | None = None, **factors) -> list[Scenario]:
         return [self.scenario(i) for i in self.indices(parking_type, **factors)]
 
-    def sample_indices(self, n_per_type: int | str, seed: int | None = None,
-                       types: tuple[str, ...] | None = None) -> np.ndarray:  # fmt: skip
+    def sample_indices(
+        self, n_per_type: int | str, seed: int | None = None, types: tuple[str, ...] | None = None
+    ) -> np.ndarray:
         """A stratified, seeded sample: ``n_per_type`` cases of each parking type.
 
         Strata are road width x slot-size tercile, so every road width and narrow, middle
@@ -168,8 +169,9 @@ class Grid:
                     left -= 1
         return np.concatenate([rng.choice(s, q, replace=False) for s, q in zip(strata, quota) if q])
 
-    def sample(self, n_per_type: int | str, seed: int | None = None,
-               types: tuple[str, ...] | None = None) -> list[Scenario]:  # fmt: skip
+    def sample(
+        self, n_per_type: int | str, seed: int | None = None, types: tuple[str, ...] | None = None
+    ) -> list[Scenario]:
         return [self.scenario(i) for i in self.sample_indices(n_per_type, seed, types)]
 
 

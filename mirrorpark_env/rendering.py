@@ -34,16 +34,14 @@ def build_road(geometry: ScenarioGeometry, np_random=None):
     rw = geometry.road_width
     net = RoadNetwork()
     c, n = LineType.CONTINUOUS_LINE, LineType.NONE
-    net.add_lane("road", "end", StraightLane([x_lo, -rw / 2], [x_hi, -rw / 2], width=rw,
-                                             line_types=(c, c)))  # fmt: skip
+    net.add_lane("road", "end", StraightLane([x_lo, -rw / 2], [x_hi, -rw / 2], width=rw, line_types=(c, c)))
     slot = geometry.slot
     names = [name for name, _ in geometry.slot_edges]
     for i in range(4):  # the slot's sides painted, as one narrow lane each
         a, b = slot[i], slot[(i + 1) % 4]
         if names[i] == "entrance" and geometry.parking_type.value != "angle":
             continue  # lies on the road's own edge line
-        net.add_lane(f"slot{i}", f"slot{i}e", StraightLane([a[0], -a[1]], [b[0], -b[1]], width=0.15,
-                                                           line_types=(c, n)))  # fmt: skip
+        net.add_lane(f"slot{i}", f"slot{i}e", StraightLane([a[0], -a[1]], [b[0], -b[1]], width=0.15, line_types=(c, n)))
     return Road(network=net, np_random=np_random, record_history=False)
 
 

@@ -19,8 +19,8 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
-from functools import cached_property
 from enum import Enum
+from functools import cached_property
 
 import numpy as np
 
@@ -83,9 +83,7 @@ class Scenario:
         if not -math.pi <= self.theta0 <= math.pi:
             raise ValueError(f"theta0: must be in [-pi, pi] rad ([-180, 180] deg), got {self.theta0}")
         if not 0 <= self.y0 <= self.road_width:
-            raise ValueError(
-                f"y0: must be in [0, road_width={self.road_width}] m, got {self.y0}"
-            )
+            raise ValueError(f"y0: must be in [0, road_width={self.road_width}] m, got {self.y0}")
 
     @classmethod
     def from_degrees(
@@ -99,8 +97,7 @@ class Scenario:
         start_x_offset: float = 0.0,
     ) -> Scenario:
         theta0_deg = _finite("theta0_deg", theta0_deg)
-        return cls(parking_type, road_width, slot_length, slot_width,
-                   math.radians(theta0_deg), y0, start_x_offset)  # fmt: skip
+        return cls(parking_type, road_width, slot_length, slot_width, math.radians(theta0_deg), y0, start_x_offset)
 
     @property
     def theta0_deg(self) -> float:
@@ -122,12 +119,18 @@ class Scenario:
         m = _CASE_ID.fullmatch(case_id.strip())
         if not m:
             raise ValueError(
-                f"case id: cannot parse {case_id!r}; expected e.g. "
-                "'reverse_rw6.00_sl4.82_sw2.17_th+10_y2.50'"
+                f"case id: cannot parse {case_id!r}; expected e.g. 'reverse_rw6.00_sl4.82_sw2.17_th+10_y2.50'"
             )
         g = m.groupdict()
-        return cls.from_degrees(g["type"], float(g["rw"]), float(g["sl"]), float(g["sw"]),
-                                float(g["th"]), float(g["y"]), float(g["dx"] or 0.0))  # fmt: skip
+        return cls.from_degrees(
+            g["type"],
+            float(g["rw"]),
+            float(g["sl"]),
+            float(g["sw"]),
+            float(g["th"]),
+            float(g["y"]),
+            float(g["dx"] or 0.0),
+        )
 
     @property
     def entrance_length(self) -> float:
@@ -210,9 +213,7 @@ def build_geometry(sc: Scenario, vehicle: VehicleParams, scene_margin: float = 2
             need = f"slot_length >= car length {car_len:.2f} m and slot_width >= car width {car_w:.2f} m"
         else:
             need = f"slot_width >= car width {car_w:.2f} m and slot_length >= car length {car_len:.2f} m"
-        raise ValueError(
-            f"slot too small for the car: {t.value} slot {sl:.2f} x {sw:.2f} m needs {need}"
-        )
+        raise ValueError(f"slot too small for the car: {t.value} slot {sl:.2f} x {sw:.2f} m needs {need}")
     if not bool(start_fits_road(vehicle, sc.theta0, sc.y0, rw)):
         raise ValueError(
             f"y0={sc.y0} m, theta0={sc.theta0_deg:.1f} deg: the start footprint leaves the road "
@@ -261,9 +262,7 @@ def build_geometry(sc: Scenario, vehicle: VehicleParams, scene_margin: float = 2
         _rect(x_lo, x_hi, rw, rw + D),  # beyond the far road boundary
     ]
     centre = slot.mean(axis=0)
-    edges = tuple(
-        (names[i], inward_half_plane(slot[i], slot[(i + 1) % 4], centre)) for i in range(4)
-    )
+    edges = tuple((names[i], inward_half_plane(slot[i], slot[(i + 1) % 4], centre)) for i in range(4))
     tx = target_c[0] - off * math.cos(heading)
     ty = target_c[1] - off * math.sin(heading)
     start = VehicleState(E + sc.start_x_offset, sc.y0, sc.theta0)

@@ -53,8 +53,14 @@ class Policy(ABC):
         return self.stats[-1].status if self.stats else "none"
 
 
-def run_episode(env, policy: Policy, scenario=None, seed: int | None = None, max_steps: int = 100_000,
-                trace: list[dict] | None = None):  # fmt: skip
+def run_episode(
+    env,
+    policy: Policy,
+    scenario=None,
+    seed: int | None = None,
+    max_steps: int = 100_000,
+    trace: list[dict] | None = None,
+):
     """Roll ``policy`` out in ``env`` for one episode; return (last info, steps).
     ``trace``, if given, receives the info of the reset and of every step."""
     options = {"scenario": scenario} if scenario is not None else None

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -151,8 +149,18 @@ def test_a_scripted_reverse_parking_succeeds():
 def test_info_carries_the_verdict_fields():
     env = make()
     _, info = env.reset(seed=1)
-    for key in ("is_success", "collision", "margins", "heading_error", "direction_switches",
-                "parking_time", "path_length", "failed_criterion", "vehicle_state", "geometry"):  # fmt: skip
+    for key in (
+        "is_success",
+        "collision",
+        "margins",
+        "heading_error",
+        "direction_switches",
+        "parking_time",
+        "path_length",
+        "failed_criterion",
+        "vehicle_state",
+        "geometry",
+    ):
         assert key in info
 
 

@@ -24,25 +24,40 @@ C = "parallel_rw4.00_sl7.32_sw2.50_th+10_y1.30"
 
 
 def _row(planner, ptype, success, switches, t, times, **kw):
-    base = dict(planner=planner, case_id=f"{ptype}_{kw.pop('k', 0)}", parking_type=ptype, road_width=4.0,
-                slot_length=5.0, slot_width=2.5, theta0_deg=0.0, y0=kw.pop("y0", 2.0), success=success,
-                switches=switches, parking_time_s=t, plan_times_ms=times, episode_wall_s=1.0,
-                failed_criterion=None if success else "time", planner_status="ok")  # fmt: skip
+    base = dict(
+        planner=planner,
+        case_id=f"{ptype}_{kw.pop('k', 0)}",
+        parking_type=ptype,
+        road_width=4.0,
+        slot_length=5.0,
+        slot_width=2.5,
+        theta0_deg=0.0,
+        y0=kw.pop("y0", 2.0),
+        success=success,
+        switches=switches,
+        parking_time_s=t,
+        plan_times_ms=times,
+        episode_wall_s=1.0,
+        failed_criterion=None if success else "time",
+        planner_status="ok",
+    )
     base.update(kw)
     return base
 
 
 def hand_table() -> pd.DataFrame:
-    return pd.DataFrame([
-        _row("mirror", "parallel", True, 2, 20.0, [10, 20], k=1, y0=1.0),
-        _row("mirror", "parallel", False, 9, 180.0, [30], k=2, y0=2.0),
-        _row("mirror", "reverse", True, 4, 30.0, [40, 50, 60], k=3, y0=1.0),
-        _row("mirror", "reverse", True, 0, 10.0, [70], k=4, y0=2.0),
-        _row("base", "parallel", False, 1, 180.0, [100], k=1, y0=1.0),
-        _row("base", "parallel", False, 1, 180.0, [100], k=2, y0=2.0),
-        _row("base", "reverse", True, 6, 40.0, [200], k=3, y0=1.0),
-        _row("base", "reverse", False, 1, 180.0, [300], k=4, y0=2.0),
-    ])  # fmt: skip
+    return pd.DataFrame(
+        [
+            _row("mirror", "parallel", True, 2, 20.0, [10, 20], k=1, y0=1.0),
+            _row("mirror", "parallel", False, 9, 180.0, [30], k=2, y0=2.0),
+            _row("mirror", "reverse", True, 4, 30.0, [40, 50, 60], k=3, y0=1.0),
+            _row("mirror", "reverse", True, 0, 10.0, [70], k=4, y0=2.0),
+            _row("base", "parallel", False, 1, 180.0, [100], k=1, y0=1.0),
+            _row("base", "parallel", False, 1, 180.0, [100], k=2, y0=2.0),
+            _row("base", "reverse", True, 6, 40.0, [200], k=3, y0=1.0),
+            _row("base", "reverse", False, 1, 180.0, [300], k=4, y0=2.0),
+        ]
+    )
 
 
 def test_summary_numbers_from_a_hand_made_table():
@@ -54,8 +69,10 @@ def test_summary_numbers_from_a_hand_made_table():
     # All seven calls pooled: 10 20 30 40 50 60 70 -> median 40, p95 by linear interpolation 67.
     assert s["plan_time_ms"]["median"] == 40.0
     assert s["plan_time_ms"]["p95"] == pytest.approx(67.0)
-    assert odd_size(hand_table()) == {"base": {"parallel": 0, "reverse": 1, "angle": 0, "all": 1},
-                                      "mirror": {"parallel": 1, "reverse": 2, "angle": 0, "all": 3}}  # fmt: skip
+    assert odd_size(hand_table()) == {
+        "base": {"parallel": 0, "reverse": 1, "angle": 0, "all": 1},
+        "mirror": {"parallel": 1, "reverse": 2, "angle": 0, "all": 3},
+    }
     h = {r["measure"]: r["ours"] for r in headline(hand_table(), "mirror", "base")}
     assert h["success rate"] == pytest.approx(100 * (0.75 - 0.25) / 0.25)  # +200 %
     assert h["ODD size"] == pytest.approx(200.0)
@@ -131,8 +148,20 @@ def test_case_files(tmp_path):
     (sc,) = load_case_file(good)
     assert sc.case_id == "reverse_rw6.00_sl4.82_sw2.30_th+10_y2.50"
     js = tmp_path / "cases.json"
-    js.write_text(json.dumps([{"parking_type": "angle", "road_width": 4, "slot_length": 4.82, "slot_width": 2.0,
-                               "theta0_deg": 0, "y0": 2.0}]))  # fmt: skip
+    js.write_text(
+        json.dumps(
+            [
+                {
+                    "parking_type": "angle",
+                    "road_width": 4,
+                    "slot_length": 4.82,
+                    "slot_width": 2.0,
+                    "theta0_deg": 0,
+                    "y0": 2.0,
+                }
+            ]
+        )
+    )
     assert load_case_file(js)[0].parking_type.value == "angle"
     bad = tmp_path / "bad.csv"
     bad.write_text("parking_type,road_width,slot_length,slot_width,y0\nreverse,6,4.82,2.3,2.5\n")
@@ -177,8 +206,17 @@ def test_report_writes_markdown_and_figures(tmp_path):
     path = write_report(hand_table(), tmp_path, baseline="base")
     text = path.read_text()
     assert "+40.6 %" in text and "+200.0 %" in text  # the paper's figure beside ours
-    for name in ("success_by_type", "success_vs_road_width", "sensitivity_slot", "sensitivity_y0",
-                 "sensitivity_y1", "odd_parallel", "odd_reverse", "efficiency", "plan_time"):  # fmt: skip
+    for name in (
+        "success_by_type",
+        "success_vs_road_width",
+        "sensitivity_slot",
+        "sensitivity_y0",
+        "sensitivity_y1",
+        "odd_parallel",
+        "odd_reverse",
+        "efficiency",
+        "plan_time",
+    ):
         assert (tmp_path / f"{name}.png").stat().st_size > 1000
         assert f"({name}.png)" in text
 
@@ -186,8 +224,24 @@ def test_report_writes_markdown_and_figures(tmp_path):
 def test_evaluate_cli_json_summary(tmp_path, capsys):
     cases = tmp_path / "cases.csv"
     cases.write_text("parking_type,road_width,slot_length,slot_width,theta0_deg,y0\nreverse,7,4.82,2.32,40,3.0\n")
-    assert cli(["evaluate", "--planner", "mirror", "--cases", str(cases), "--out", str(tmp_path / "r"),
-                "--workers", "1", "--quiet", "--json"]) == 0  # fmt: skip
+    assert (
+        cli(
+            [
+                "evaluate",
+                "--planner",
+                "mirror",
+                "--cases",
+                str(cases),
+                "--out",
+                str(tmp_path / "r"),
+                "--workers",
+                "1",
+                "--quiet",
+                "--json",
+            ]
+        )
+        == 0
+    )
     s = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert s["planner"] == "mirror" and s["cases"] == 1 and s["success_rate"]["reverse"] == 1.0
     assert s["success_rate"]["parallel"] is None and not math.isnan(s["plan_time_ms"]["median"])

@@ -8,16 +8,16 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import shapely
+from fixed_cases import EASY_CASES
 
 import mirrorpark_env  # noqa: F401
-from fixed_cases import EASY_CASES
 from mirrorpark_env import Scenario, VehicleParams
 from mirrorpark_env.vehicle import footprint
 from planners.base import run_episode
 from planners.hybrid_astar import reeds_shepp
 from planners.hybrid_astar.heuristic import GridDistance, ReedsShepp
-from planners.hybrid_astar.search import HybridAStar, HybridAStarConfig, Path
 from planners.hybrid_astar.policy import HybridAStarPolicy
+from planners.hybrid_astar.search import HybridAStar, HybridAStarConfig, Path
 
 P = VehicleParams()
 R = P.wheelbase / math.tan(P.max_steer)
@@ -132,7 +132,8 @@ def test_a_path_never_comes_near_an_obstacle(case_id):
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "case_id", [*EASY_CASES, "parallel_rw3.50_sl4.82_sw2.50_th+0_y1.70"]  # the last: tight, with switches
+    "case_id",
+    [*EASY_CASES, "parallel_rw3.50_sl4.82_sw2.50_th+0_y1.70"],  # the last: tight, with switches
 )
 def test_easy_cases_park(case_id):
     env = gym.make("MirrorPark-v0").unwrapped

@@ -9,10 +9,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from fixed_cases import EASY_CASES
 
 import mirrorpark_env  # noqa: F401
-from fixed_cases import EASY_CASES
-from mirrorpark_env import Scenario, VehicleParams, VehicleState
+from mirrorpark_env import Scenario, VehicleParams
 from planners.base import run_episode
 from planners.mirror.mirror_line import (
     mirror_line,
@@ -23,7 +23,7 @@ from planners.mirror.mirror_line import (
 )
 from planners.mirror.planner import FLIP, Candidate, MirrorPlanner
 from planners.mirror.policy import MirrorPolicy
-from planners.mirror.solvers import QP, BranchAndBound, Disjunction, Enumeration, INACTIVE, PiqpQP
+from planners.mirror.solvers import INACTIVE, QP, BranchAndBound, Disjunction, Enumeration, PiqpQP
 
 P = VehicleParams()
 R_MIN = 2.5 / math.tan(0.6)  # 3.6542 m
@@ -39,9 +39,9 @@ def test_mirror_line_bounds_by_hand():
     assert parallel_upper_bound(P, 2.5, 0.0) == pytest.approx(0.415)
     # at psi = 0.3: 1.25 - 0.71 sin 0.3 - 0.835 cos 0.3
     assert parallel_upper_bound(P, 2.5, 0.3) == pytest.approx(1.25 - 0.71 * math.sin(0.3) - 0.835 * math.cos(0.3))
-    psi, l = parallel_dark_point(P, 2.5)
+    psi, l_mi = parallel_dark_point(P, 2.5)
     assert parallel_upper_bound(P, 2.5, psi) == pytest.approx(reach_lower_bound(P, psi), abs=1e-9)
-    assert (psi, l) == pytest.approx((0.3504, 0.2220), abs=1e-3)
+    assert (psi, l_mi) == pytest.approx((0.3504, 0.2220), abs=1e-3)
     assert parallel_dark_point(P, 1.6) == (0.0, 0.0)  # narrower than the car: no band
 
 
@@ -134,8 +134,17 @@ def _boxes_problem():
             bounds.append(b)
         disj.append(Disjunction(tuple(idx)))
     G = sp.csc_matrix(np.array(rows, float))
-    qp = QP(sp.csc_matrix(2 * np.eye(2)), -2 * np.array([0.2, 0.1]), sp.csc_matrix((0, 2)), np.zeros(0), G,
-            np.full(len(rows), INACTIVE), np.full(len(rows), np.inf), np.full(2, -5.0), np.full(2, 5.0))  # fmt: skip
+    qp = QP(
+        sp.csc_matrix(2 * np.eye(2)),
+        -2 * np.array([0.2, 0.1]),
+        sp.csc_matrix((0, 2)),
+        np.zeros(0),
+        G,
+        np.full(len(rows), INACTIVE),
+        np.full(len(rows), np.inf),
+        np.full(2, -5.0),
+        np.full(2, 5.0),
+    )
     return qp, disj, np.array(bounds, float)
 
 
@@ -166,7 +175,8 @@ def test_piqp_backend_refills_one_pattern():
 # ---------------------------------------------------------------- closed loop
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "case_id", [*EASY_CASES, "parallel_rw4.50_sl6.00_sw2.50_th+0_y2.00"]  # the last: needs switches
+    "case_id",
+    [*EASY_CASES, "parallel_rw4.50_sl6.00_sw2.50_th+0_y2.00"],  # the last: needs switches
 )
 def test_easy_cases_park(case_id):
     env = gym.make("MirrorPark-v0").unwrapped

@@ -48,9 +48,16 @@ def test_her_relabelled_rewards_are_the_envs_compute_reward(require_module, tmp_
     from stable_baselines3.common.logger import configure
 
     env = LeanInfo(CurriculumScenarios(gym.make("MirrorPark-v0", max_episode_steps=50), ["parallel"], level=1.0))
-    model = SAC("MultiInputPolicy", env, replay_buffer_class=HerReplayBuffer,
-                replay_buffer_kwargs=dict(n_sampled_goal=4, goal_selection_strategy="future", copy_info_dict=True),
-                learning_starts=10_000, buffer_size=1000, seed=0, device="cpu")  # fmt: skip
+    model = SAC(
+        "MultiInputPolicy",
+        env,
+        replay_buffer_class=HerReplayBuffer,
+        replay_buffer_kwargs=dict(n_sampled_goal=4, goal_selection_strategy="future", copy_info_dict=True),
+        learning_starts=10_000,
+        buffer_size=1000,
+        seed=0,
+        device="cpu",
+    )
     model.set_logger(configure(str(tmp_path), ["csv"]))  # not SB3's default folder in /tmp
     model.learn(300)  # only collects: learning starts later
     buf = model.replay_buffer
@@ -66,6 +73,7 @@ def test_her_relabelled_rewards_are_the_envs_compute_reward(require_module, tmp_
     assert np.isclose(got, r0, atol=1e-5).mean() > 0.8  # collisions end episodes: they are rare
     assert (r1 < r0).all()
 
+
 @pytest.mark.slow
 @pytest.mark.parametrize("algo", ["sac", "tqc"])
 def test_a_short_training_run_saves_a_model_that_acts_as_a_policy(tmp_path, require_module, algo):
@@ -76,9 +84,18 @@ def test_a_short_training_run_saves_a_model_that_acts_as_a_policy(tmp_path, requ
     from evaluation.registry import make_policy
     from planners.rl.train import train
 
-    cfg = load_rl_config(overrides=dict(algo=algo, total_steps=300, learning_starts=100, batch_size=32, net_arch=[32, 32],
-                                        max_episode_steps=100, checkpoint_every_steps=150,
-                                        eval={"every_steps": 300, "episodes": 1}))  # fmt: skip
+    cfg = load_rl_config(
+        overrides=dict(
+            algo=algo,
+            total_steps=300,
+            learning_starts=100,
+            batch_size=32,
+            net_arch=[32, 32],
+            max_episode_steps=100,
+            checkpoint_every_steps=150,
+            eval={"every_steps": 300, "episodes": 1},
+        )
+    )
     summary = train(cfg, tmp_path, progress=False)
     for name in ("model.zip", "train.json", "progress.csv", "evaluations.npz", "learning_curve.png"):
         assert (tmp_path / name).is_file(), name

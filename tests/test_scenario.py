@@ -29,7 +29,9 @@ def test_bad_inputs_name_the_field(kwargs, match):
 
 
 def test_slot_narrower_than_the_car_cannot_be_built():
-    with pytest.raises(ValueError, match=r"slot too small for the car: reverse slot 4.82 x 1.60 m needs slot_width >= car width 1.67"):
+    with pytest.raises(
+        ValueError, match=r"slot too small for the car: reverse slot 4.82 x 1.60 m needs slot_width >= car width 1.67"
+    ):
         Scenario.from_degrees("reverse", 6.0, 4.82, 1.60, 0, 2.0).build()
     with pytest.raises(ValueError, match=r"slot too small.*slot_length >= car length 3.82"):
         Scenario.from_degrees("parallel", 4.0, 3.5, 2.5, 0, 2.0).build()

@@ -18,7 +18,6 @@ from mirrorpark_env.geometry import ConvexSet
 
 from . import reeds_shepp
 
-
 OCTILE = 1.0 / math.cos(math.pi / 8)  # worst ratio of 8-connected to straight distance
 
 
@@ -59,9 +58,14 @@ class GridDistance:
     the distance stays a lower bound on how far the rear axle must travel.
     """
 
-    def __init__(self, obstacles: ConvexSet, window: tuple[float, float, float, float],
-                 goal_xy: tuple[float, float], resolution: float = 0.25,
-                 clearance: float = 0.5) -> None:  # fmt: skip
+    def __init__(
+        self,
+        obstacles: ConvexSet,
+        window: tuple[float, float, float, float],
+        goal_xy: tuple[float, float],
+        resolution: float = 0.25,
+        clearance: float = 0.5,
+    ) -> None:
         x0, x1, y0, y1 = window
         self.x0, self.y0, self.res = x0, y0, resolution
         nx = int(math.ceil((x1 - x0) / resolution)) + 1
@@ -84,8 +88,9 @@ class GridDistance:
             rows.append(a[ok])
             cols.append(b[ok])
             w.append(np.full(ok.sum(), resolution * math.hypot(di, dj)))
-        graph = coo_matrix((np.concatenate(w), (np.concatenate(rows), np.concatenate(cols))),
-                           shape=(nx * ny, nx * ny)).tocsr()  # fmt: skip
+        graph = coo_matrix(
+            (np.concatenate(w), (np.concatenate(rows), np.concatenate(cols))), shape=(nx * ny, nx * ny)
+        ).tocsr()
         dist = dijkstra(graph, directed=False, indices=gi * ny + gj)
         self.dist = dist.reshape(nx, ny)
 

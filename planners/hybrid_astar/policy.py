@@ -24,8 +24,9 @@ from .tracker import PathTracker, TrackerConfig, hold_command
 class HybridAStarPolicy(Policy):
     name = "hybrid-astar"
 
-    def __init__(self, config: HybridAStarConfig | None = None, tracker: TrackerConfig | None = None,
-                 max_plans: int = 6) -> None:  # fmt: skip
+    def __init__(
+        self, config: HybridAStarConfig | None = None, tracker: TrackerConfig | None = None, max_plans: int = 6
+    ) -> None:
         super().__init__()
         self.config = config or HybridAStarConfig()
         self.tracker_config = tracker or TrackerConfig()

@@ -56,8 +56,17 @@ class HybridAStarConfig:
     time_budget_s: float = 10.0
 
     def __post_init__(self) -> None:
-        positive = ("xy_resolution", "heading_resolution_deg", "step", "sample_step", "grid_resolution",
-                    "time_budget_s", "window_margin", "min_step", "start_relief")  # fmt: skip
+        positive = (
+            "xy_resolution",
+            "heading_resolution_deg",
+            "step",
+            "sample_step",
+            "grid_resolution",
+            "time_budget_s",
+            "window_margin",
+            "min_step",
+            "start_relief",
+        )
         for name in positive:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -72,8 +81,15 @@ class HybridAStarConfig:
             raise ValueError(f"min_step: must be <= step={self.step} m, got {self.min_step}")
         if self.sample_step > self.step:
             raise ValueError(f"sample_step: must be <= step={self.step} m, got {self.sample_step}")
-        for name in ("clearance", "reverse_cost", "switch_cost", "steer_cost", "steer_change_cost",
-                     "goal_margin", "goal_heading_deg"):  # fmt: skip
+        for name in (
+            "clearance",
+            "reverse_cost",
+            "switch_cost",
+            "steer_cost",
+            "steer_change_cost",
+            "goal_margin",
+            "goal_heading_deg",
+        ):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name}: must be >= 0, got {getattr(self, name)!r}")
         if not self.heuristic_weight >= 1:
@@ -217,8 +233,9 @@ class HybridAStar:
     def _analytic(self, pose, goal) -> np.ndarray | None:
         """A clear Reeds-Shepp path from ``pose`` to ``goal``, or None."""
         coarse = self.rs.sample(pose, goal, 4 * self.cfg.sample_step)
-        if (self._gaps(coarse) < np.minimum(self._required(coarse), self.cfg.clearance)).any() \
-                or not self._in_window(coarse).all():  # fmt: skip
+        if (self._gaps(coarse) < np.minimum(self._required(coarse), self.cfg.clearance)).any() or not self._in_window(
+            coarse
+        ).all():
             return None  # a pose that close already rules the path out
         fine = self.rs.sample(pose, goal, self.cfg.sample_step)
         return fine if self.path_is_clear(fine) else None
@@ -232,16 +249,18 @@ class HybridAStar:
 
     def _key(self, pose) -> tuple[int, int, int]:
         r = self.cfg.xy_resolution
-        return (int(math.floor(pose[0] / r)), int(math.floor(pose[1] / r)),
-                int(math.floor(pose[2] / self.th_res + 0.5)) % self.n_th)  # fmt: skip
+        return (
+            int(math.floor(pose[0] / r)),
+            int(math.floor(pose[1] / r)),
+            int(math.floor(pose[2] / self.th_res + 0.5)) % self.n_th,
+        )
 
     def _grid(self, goal) -> GridDistance:
         key = (self.window, goal)
         if key not in self._grids:
             if len(self._grids) >= 8:
                 self._grids.clear()
-            self._grids[key] = GridDistance(self.geometry.obstacles, self.window, goal[:2],
-                                            self.cfg.grid_resolution)  # fmt: skip
+            self._grids[key] = GridDistance(self.geometry.obstacles, self.window, goal[:2], self.cfg.grid_resolution)
         return self._grids[key]
 
     def plan(self, start) -> tuple[Path | None, PlanStats]:
@@ -263,10 +282,19 @@ class HybridAStar:
         counts = {"expansions": 0, "nodes": 0}
 
         def done(path: Path | None, status: str, cost: float = math.nan, direction: str = ""):
-            detail = {"switches": path.switches if path is not None else -1,
-                      "length": path.length if path is not None else math.nan, "search": direction}  # fmt: skip
-            return path, PlanStats(time.perf_counter() - t0, status, iterations=counts["expansions"],
-                                   nodes=counts["nodes"], cost=cost, detail=detail)  # fmt: skip
+            detail = {
+                "switches": path.switches if path is not None else -1,
+                "length": path.length if path is not None else math.nan,
+                "search": direction,
+            }
+            return path, PlanStats(
+                time.perf_counter() - t0,
+                status,
+                iterations=counts["expansions"],
+                nodes=counts["nodes"],
+                cost=cost,
+                detail=detail,
+            )
 
         self._start = start
         self._start_gap = float(self._gaps(np.array([start]))[0])
@@ -278,8 +306,9 @@ class HybridAStar:
         poses, status, cost = self._search(self.goal, start, backward=True, deadline=deadline, counts=counts)
         if poses is not None:
             return done(Path.from_poses(poses[::-1]), "ok", cost, "backward")
-        poses, status, cost = self._search(start, self.goal, backward=False, deadline=t0 + cfg.time_budget_s,
-                                           counts=counts)  # fmt: skip
+        poses, status, cost = self._search(
+            start, self.goal, backward=False, deadline=t0 + cfg.time_budget_s, counts=counts
+        )
         if poses is not None:
             return done(Path.from_poses(poses), "ok", cost, "forward")
         return done(None, status)

@@ -39,8 +39,16 @@ class TrackerConfig:
     max_heading_error_deg: float = 5.0
 
     def __post_init__(self) -> None:
-        for name in ("cruise_speed", "accel", "decel", "preview", "speed_gain", "steer_tolerance",
-                     "max_lateral_error", "max_heading_error_deg"):  # fmt: skip
+        for name in (
+            "cruise_speed",
+            "accel",
+            "decel",
+            "preview",
+            "speed_gain",
+            "steer_tolerance",
+            "max_lateral_error",
+            "max_heading_error_deg",
+        ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name}: must be a finite number > 0, got {v!r}")

@@ -99,8 +99,9 @@ class GuideSearch:
                     self._road_tails.append((r, *best))
         return self._road_tails
 
-    def _connect(self, pose, tails, limit: int, start_gap: float | None = None, batch: int = 16,
-                 bound: float = math.inf):  # fmt: skip
+    def _connect(
+        self, pose, tails, limit: int, start_gap: float | None = None, batch: int = 16, bound: float = math.inf
+    ):
         """Cheapest clear (samples, cost) from ``pose`` through one of ``tails``, checking at
         most ``limit`` of them in order of their lower bound; candidates whose lower bound
         reaches ``bound`` (a guide already found) are not looked at.
@@ -173,8 +174,9 @@ class GuideSearch:
     def _clear(self, poses: np.ndarray, start_gap: float | None = None, gap: float | None = None) -> bool:
         return bool(np.all(self._gaps(poses) >= self._need(poses, start_gap, gap)))
 
-    def _clear_many(self, paths: list[np.ndarray], start_gap: float | None = None,
-                    gap: float | None = None) -> list[bool]:  # fmt: skip
+    def _clear_many(
+        self, paths: list[np.ndarray], start_gap: float | None = None, gap: float | None = None
+    ) -> list[bool]:
         """``_clear`` for paths that all start at the same pose, in one footprint check."""
         if not paths:
             return []
@@ -253,8 +255,9 @@ class GuideSearch:
         direct = self.rs.sample(pose, self.target, cfg.sample_step)
         if self._clear(direct, start_gap):
             best = Guide(Path.from_poses(direct), self._cost(direct), -1)
-        found = self._connect(pose, self._tails, cfg.max_checked, start_gap,
-                              bound=best.cost if best is not None else math.inf)  # fmt: skip
+        found = self._connect(
+            pose, self._tails, cfg.max_checked, start_gap, bound=best.cost if best is not None else math.inf
+        )
         if found is not None and (best is None or found[1] < best.cost):
             best = Guide(Path.from_poses(found[0]), found[1], 0)
         if best is None:  # set up in the road first

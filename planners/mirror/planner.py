@@ -137,12 +137,22 @@ class MirrorPlanner:
         hw = 0.5 * p.width
         mid = 0.5 * (p.front_length - p.rear_overhang)
         self.points = np.array(
-            [[p.front_length, hw], [p.front_length, -hw], [-p.rear_overhang, -hw],
-             [-p.rear_overhang, hw], [mid, hw], [mid, -hw]]  # fmt: skip
+            [
+                [p.front_length, hw],
+                [p.front_length, -hw],
+                [-p.rear_overhang, -hw],
+                [-p.rear_overhang, hw],
+                [mid, hw],
+                [mid, -hw],
+            ]
         )  # the paper's six feature points: corners and the middles of the long sides
         # Car faces as (body normal, offset): front, rear, left, right.
-        self.car_faces = ((np.array([1.0, 0.0]), p.front_length), (np.array([-1.0, 0.0]), p.rear_overhang),
-                          (np.array([0.0, 1.0]), hw), (np.array([0.0, -1.0]), hw))  # fmt: skip
+        self.car_faces = (
+            (np.array([1.0, 0.0]), p.front_length),
+            (np.array([-1.0, 0.0]), p.rear_overhang),
+            (np.array([0.0, 1.0]), hw),
+            (np.array([0.0, -1.0]), hw),
+        )
         N = self.N
         # Variables stage by stage (xi_0, u_0, xi_1, u_1, ..., xi_N), then S: the layout
         # piqp's multistage KKT solver exploits (docs/mirror_planner.md, "Sparse QP").
@@ -200,8 +210,9 @@ class MirrorPlanner:
             if plan is not None or not self.cfg.fallback:
                 if plan is None:
                     found = math.isfinite(self._guide_detail.get("guide_cost", math.inf))
-                    self.last_stats = PlanStats(time.perf_counter() - t0, "infeasible" if found else "no_guide",
-                                                detail=self._guide_detail)  # fmt: skip
+                    self.last_stats = PlanStats(
+                        time.perf_counter() - t0, "infeasible" if found else "no_guide", detail=self._guide_detail
+                    )
                 return plan
         if not self.line.fixed:  # Eqs. (5), (6): bound by the heading change still to go
             psi = min(abs(_unwrap_near(self.g.target[2], state.theta) - state.theta), math.pi / 2)
@@ -228,10 +239,15 @@ class MirrorPlanner:
         status = "ok" if best is not None else "infeasible"
         if partial is not None and partial.cost < 0.98 * min(stay, best.cost if best else math.inf):
             best, status = partial, "partial"  # no full plan progresses: go as far as is safe
-        stats = PlanStats(time.perf_counter() - t0, status, totals["iterations"], totals["qp_solves"],
-                          totals["nodes"], best.cost if best else math.nan,
-                          {"candidates": tried, "stay_cost": stay, "guided": False,
-                           **self._guide_detail})  # fmt: skip
+        stats = PlanStats(
+            time.perf_counter() - t0,
+            status,
+            totals["iterations"],
+            totals["qp_solves"],
+            totals["nodes"],
+            best.cost if best else math.nan,
+            {"candidates": tried, "stay_cost": stay, "guided": False, **self._guide_detail},
+        )
         self.last_stats = stats
         return replace(best, stats=stats) if best is not None else None
 
@@ -261,9 +277,20 @@ class MirrorPlanner:
         if plan is None:
             self._goal = np.array(self.g.target, float)
             return None
-        stats = PlanStats(time.perf_counter() - t0, status, st["iterations"], st["qp_solves"], st["nodes"], plan.cost,
-                          {"candidates": [(cand, round(plan.cost, 3), st["status"])], "guided": True,
-                           "goal": tuple(round(float(v), 3) for v in goal), **self._guide_detail})  # fmt: skip
+        stats = PlanStats(
+            time.perf_counter() - t0,
+            status,
+            st["iterations"],
+            st["qp_solves"],
+            st["nodes"],
+            plan.cost,
+            {
+                "candidates": [(cand, round(plan.cost, 3), st["status"])],
+                "guided": True,
+                "goal": tuple(round(float(v), 3) for v in goal),
+                **self._guide_detail,
+            },
+        )
         self.last_stats = stats
         return replace(plan, stats=stats)
 
@@ -327,7 +354,11 @@ class MirrorPlanner:
             lam = (xi0[XI_Y] - S_guess[1]) / u_t[1] if abs(u_t[1]) > 1e-6 else 0.0
             S_guess = S_guess + max(lam, 0.0) * u_t
         p0 = xi0[:2]
-        d1 = float(np.hypot(*(S_guess - p0))) + 0.3 if cand.switch is not None else float(np.hypot(tx - p0[0], ty - p0[1]))
+        d1 = (
+            float(np.hypot(*(S_guess - p0))) + 0.3
+            if cand.switch is not None
+            else float(np.hypot(tx - p0[0], ty - p0[1]))
+        )
         d2 = float(np.hypot(S_guess[0] - tx, S_guess[1] - ty)) + 0.3
         T1, T2 = max(s, 1) * dt, max(N - s, 1) * dt
         vc1 = min(1.5, d1 * math.pi / (2 * T1))
@@ -407,8 +438,14 @@ class MirrorPlanner:
                 out.append((cand, real))
         return out
 
-    def _solve_candidate(self, xi0: np.ndarray, cand: Candidate, seed: np.ndarray | None = None,
-                         iterations: int | None = None, free_switch: bool = False):
+    def _solve_candidate(
+        self,
+        xi0: np.ndarray,
+        cand: Candidate,
+        seed: np.ndarray | None = None,
+        iterations: int | None = None,
+        free_switch: bool = False,
+    ):
         """SCP with Algorithm I inside, for one (direction, switch step) candidate.
 
         Each round linearises about the reference rollout, adds the disjunctive obstacle
@@ -449,8 +486,16 @@ class MirrorPlanner:
                     lin_at[cand.switch] = FLIP @ lin_at[cand.switch]
                 lin = self.model.jacobian_linearisation(lin_at, ref_u)
             qp, disj, active, preferred = self._build(
-                xi0, cand, theta_t, c, lin, ref_real, theta_set, not paper,
-                mirror=cand.direction == self.first_direction and not free_switch, trust_scale=trust_scale,
+                xi0,
+                cand,
+                theta_t,
+                c,
+                lin,
+                ref_real,
+                theta_set,
+                not paper,
+                mirror=cand.direction == self.first_direction and not free_switch,
+                trust_scale=trust_scale,
             )
             if disj:
                 res = self.miqp.solve(qp, disj, active, preferred)
@@ -584,8 +629,19 @@ class MirrorPlanner:
         return sp.diags(d, format="csc")
 
     # ----------------------------------------------------------------- build
-    def _build(self, xi0, cand, theta_t, c, lin, ref_real, theta_set, trust: bool, mirror: bool = True,
-               trust_scale: float = 1.0):  # fmt: skip
+    def _build(
+        self,
+        xi0,
+        cand,
+        theta_t,
+        c,
+        lin,
+        ref_real,
+        theta_set,
+        trust: bool,
+        mirror: bool = True,
+        trust_scale: float = 1.0,
+    ):
         """The QP of one round. Its matrices refill patterns fixed per switch step (the
         cost, the dynamics); only the obstacle rows are assembled anew."""
         cfg, N = self.cfg, self.N
@@ -650,7 +706,9 @@ class MirrorPlanner:
         if link_s not in self._eq_patterns:
             n = self._n_dyn_rows
             rows = np.concatenate([self._dyn_rows, [n, n, n + 1, n + 1]])
-            cols = np.concatenate([self._dyn_cols, [self.iS, self.ix(link_s, XI_X), self.iS + 1, self.ix(link_s, XI_Y)]])
+            cols = np.concatenate(
+                [self._dyn_cols, [self.iS, self.ix(link_s, XI_X), self.iS + 1, self.ix(link_s, XI_Y)]]
+            )
             self._eq_patterns[link_s] = CscPattern(rows, cols, (n + 2, self.nz))
         return self._eq_patterns[link_s]
 
@@ -708,7 +766,7 @@ class MirrorPlanner:
             h_u.append(np.inf)
             return r, lower
 
-        for (i, k) in sorted(theta_set):
+        for i, k in sorted(theta_set):
             sign, twice = self._real_pose_coeffs(i, cand)
             th = ref[i, XI_TH]
             ct, st_ = math.cos(th), math.sin(th)
@@ -815,8 +873,9 @@ class MirrorPlanner:
         near = np.hypot(poses[:, 0] - x0, poses[:, 1] - y0) < START_RELIEF
         return np.where(near, min(margin, gap0 - START_SLACK), margin)
 
-    def _collisions(self, real_half: np.ndarray, margin: float = 0.0,
-                    pen: np.ndarray | None = None) -> list[tuple[int, int]]:  # fmt: skip
+    def _collisions(
+        self, real_half: np.ndarray, margin: float = 0.0, pen: np.ndarray | None = None
+    ) -> list[tuple[int, int]]:
         """(step, obstacle) pairs to constrain: steps next to any half step closer than
         ``margin`` (``pen``: the rollout's ``_penetration``, if already computed)."""
         pen = self._penetration(real_half) if pen is None else pen
@@ -844,8 +903,9 @@ class MirrorPlanner:
         cost, pos_err, th_err = self._true_cost(real, theta_t)
         S = tuple(real[cand.switch, :2]) if cand.switch is not None else None
         planned = self._to_planned(real_half, cand)
-        return Plan(self._real_commands(u_planned, cand), real, cand, S, self.line, planned, cost,
-                    (pos_err, th_err), clear)  # fmt: skip
+        return Plan(
+            self._real_commands(u_planned, cand), real, cand, S, self.line, planned, cost, (pos_err, th_err), clear
+        )
 
     def _safe_prefix(self, xi0, cand, u_planned, hits, theta_t) -> Plan | None:
         """The colliding plan's start, braking to a stop before its first contact.
@@ -875,8 +935,17 @@ class MirrorPlanner:
                 real = np.array(states)
                 cost, pos_err, th_err = self._true_cost(real, theta_t)
                 sw = cand.switch if cand.switch is not None and cand.switch < cut else None
-                return Plan(np.array(cmds), real, Candidate(cand.direction, sw), tuple(real[sw, :2]) if sw else None,
-                            self.line, real, cost, (pos_err, th_err), True)  # fmt: skip
+                return Plan(
+                    np.array(cmds),
+                    real,
+                    Candidate(cand.direction, sw),
+                    tuple(real[sw, :2]) if sw else None,
+                    self.line,
+                    real,
+                    cost,
+                    (pos_err, th_err),
+                    True,
+                )
         return None
 
 
@@ -920,8 +989,11 @@ def _useful_features(g: ScenarioGeometry):
             if ok:
                 f.append((n, float(n @ a)))
         faces.append(f)
-        vs = [poly[e] for e in range(n_v) if useful_edge[e] and useful_edge[e - 1]
-              and x_lo <= poly[e][0] <= x_hi and y_lo <= poly[e][1] <= y_hi]  # fmt: skip
+        vs = [
+            poly[e]
+            for e in range(n_v)
+            if useful_edge[e] and useful_edge[e - 1] and x_lo <= poly[e][0] <= x_hi and y_lo <= poly[e][1] <= y_hi
+        ]
         vertices.append(vs)
     return faces, vertices
 

@@ -18,16 +18,23 @@ import numpy as np
 from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import VehicleState, to_action
 
-from ..base import PlanStats, Policy
+from ..base import Policy
 from .planner import MirrorPlanner, MirrorPlannerConfig, Plan
 
 
 class MirrorPolicy(Policy):
     name = "mirror"
 
-    def __init__(self, config: MirrorPlannerConfig | None = None, drift_position: float = 0.10,
-                 drift_heading_deg: float = 3.0, retry_every: int = 5, max_failures: int = 8,
-                 max_plans: int = 40, patience: int = 6) -> None:  # fmt: skip
+    def __init__(
+        self,
+        config: MirrorPlannerConfig | None = None,
+        drift_position: float = 0.10,
+        drift_heading_deg: float = 3.0,
+        retry_every: int = 5,
+        max_failures: int = 8,
+        max_plans: int = 40,
+        patience: int = 6,
+    ) -> None:
         super().__init__()
         self.config = config or MirrorPlannerConfig()
         self.drift_position = drift_position
@@ -72,8 +79,9 @@ class MirrorPolicy(Policy):
 
     def _drifted(self, s: VehicleState) -> bool:
         ref = self.plan.states[self.k]
-        return (math.hypot(s.x - ref[0], s.y - ref[1]) > self.drift_position
-                or abs(s.theta - ref[2]) > self.drift_heading)  # fmt: skip
+        return (
+            math.hypot(s.x - ref[0], s.y - ref[1]) > self.drift_position or abs(s.theta - ref[2]) > self.drift_heading
+        )
 
     def _replan(self, s: VehicleState) -> None:
         if self._wait > 0:

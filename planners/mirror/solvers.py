@@ -26,7 +26,6 @@ import numpy as np
 import piqp
 import scipy.sparse as sp
 
-
 INACTIVE = -1e6  # lower bound of a row that is switched off
 
 
@@ -85,7 +84,9 @@ class CscPattern:
         self.shape = shape
         self.nnz = len(keys)
         self.indices = (keys % shape[0]).astype(np.int32)
-        self.indptr = np.concatenate(([0], np.cumsum(np.bincount(keys // shape[0], minlength=shape[1])))).astype(np.int32)
+        self.indptr = np.concatenate(([0], np.cumsum(np.bincount(keys // shape[0], minlength=shape[1])))).astype(
+            np.int32
+        )
 
     def matrix(self, vals, shape: tuple[int, int] | None = None) -> sp.csc_matrix:
         """The matrix with these triplet values; ``shape`` may add empty rows and columns."""
@@ -114,8 +115,14 @@ class PiqpQP:
     KKT_SOLVERS = ("sparse_ldlt", "sparse_multistage", "auto")
     MULTISTAGE_MAX_ROWS = 16  # "auto": multistage up to this many G rows (each has a global slack)
 
-    def __init__(self, eps_abs: float = 1e-6, eps_rel: float = 1e-7, max_iter: int = 200,
-                 kkt_solver: str = "sparse_ldlt", eps_gap: tuple[float, float] | None = None):  # fmt: skip
+    def __init__(
+        self,
+        eps_abs: float = 1e-6,
+        eps_rel: float = 1e-7,
+        max_iter: int = 200,
+        kkt_solver: str = "sparse_ldlt",
+        eps_gap: tuple[float, float] | None = None,
+    ):
         """``kkt_solver``: piqp's; ``sparse_multistage`` exploits variables ordered stage by
         stage, but treats trailing coupling variables (the planner's slacks) as dense: "auto"
         takes it only for QPs with few G rows (measured: ~1.5 s with 800 slacks).
@@ -204,15 +211,17 @@ class BranchAndBound:
     violated one is, children ordered by how close each alternative already is.
     """
 
-    def __init__(self, qp_backend: PiqpQP | None = None, node_limit: int = 400,
-                 time_limit_s: float = 1.0, tol: float = 1e-5):  # fmt: skip
+    def __init__(
+        self, qp_backend: PiqpQP | None = None, node_limit: int = 400, time_limit_s: float = 1.0, tol: float = 1e-5
+    ):
         self.qp_backend = qp_backend or PiqpQP()
         self.node_limit = node_limit
         self.time_limit_s = time_limit_s
         self.tol = tol
 
-    def solve(self, qp: QP, disjunctions: list[Disjunction], active_bounds: np.ndarray,
-              preferred: list[int] | None = None) -> MIQPResult:  # fmt: skip
+    def solve(
+        self, qp: QP, disjunctions: list[Disjunction], active_bounds: np.ndarray, preferred: list[int] | None = None
+    ) -> MIQPResult:
         """``active_bounds[r]``: row r's lower bound when active; ``qp.h_l`` holds ``INACTIVE`` there.
 
         ``preferred`` (one row per disjunction) seeds the search: that full assignment is
@@ -270,9 +279,15 @@ class BranchAndBound:
         qp.h_l = base_l
         if best_x is None and status == "solved":
             status = "infeasible"
-        return MIQPResult(best_x, best_obj, status if best_x is not None or status != "solved" else "infeasible",
-                          nodes, solves, best_assign,
-                          {"time_s": time.perf_counter() - t0})  # fmt: skip
+        return MIQPResult(
+            best_x,
+            best_obj,
+            status if best_x is not None or status != "solved" else "infeasible",
+            nodes,
+            solves,
+            best_assign,
+            {"time_s": time.perf_counter() - t0},
+        )
 
 
 class Enumeration:
@@ -281,8 +296,9 @@ class Enumeration:
     def __init__(self, qp_backend: PiqpQP | None = None):
         self.qp_backend = qp_backend or PiqpQP()
 
-    def solve(self, qp: QP, disjunctions: list[Disjunction], active_bounds: np.ndarray,
-              preferred: list[int] | None = None) -> MIQPResult:  # fmt: skip
+    def solve(
+        self, qp: QP, disjunctions: list[Disjunction], active_bounds: np.ndarray, preferred: list[int] | None = None
+    ) -> MIQPResult:
         base_l = qp.h_l.copy()
         best_x, best_obj, best_assign, solves = None, math.inf, (), 0
         for assign in itertools.product(*(d.rows for d in disjunctions)):
@@ -294,5 +310,6 @@ class Enumeration:
             if res.x is not None and res.obj < best_obj:
                 best_x, best_obj, best_assign = res.x, res.obj, assign
         qp.h_l = base_l
-        return MIQPResult(best_x, best_obj, "solved" if best_x is not None else "infeasible",
-                          solves, solves, best_assign)  # fmt: skip
+        return MIQPResult(
+            best_x, best_obj, "solved" if best_x is not None else "infeasible", solves, solves, best_assign
+        )

@@ -102,13 +102,21 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True) -> dict[str, An
         def _on_training_end(self) -> None:
             self.bar.close()
 
-    callbacks = CallbackList([
-        Curriculum(),
-        Progress(),
-        CheckpointCallback(cfg.checkpoint_every_steps, str(out / "checkpoints"), name_prefix=cfg.algo),
-        EvalCallback(eval_env, n_eval_episodes=cfg.eval.episodes, eval_freq=cfg.eval.every_steps,
-                     log_path=str(out), deterministic=True, verbose=0),
-    ])  # fmt: skip
+    callbacks = CallbackList(
+        [
+            Curriculum(),
+            Progress(),
+            CheckpointCallback(cfg.checkpoint_every_steps, str(out / "checkpoints"), name_prefix=cfg.algo),
+            EvalCallback(
+                eval_env,
+                n_eval_episodes=cfg.eval.episodes,
+                eval_freq=cfg.eval.every_steps,
+                log_path=str(out),
+                deterministic=True,
+                verbose=0,
+            ),
+        ]
+    )
     t0 = time.perf_counter()
     model.learn(total_timesteps=cfg.total_steps, callback=callbacks)
     wall = time.perf_counter() - t0
@@ -136,7 +144,11 @@ def learning_curve(out: str | Path) -> list[tuple[int, float, float]]:
     if not p.exists():
         return []
     d = np.load(p)
-    succ = d["successes"].mean(axis=1) if "successes" in d and d["successes"].size else np.full(len(d["timesteps"]), np.nan)
+    succ = (
+        d["successes"].mean(axis=1)
+        if "successes" in d and d["successes"].size
+        else np.full(len(d["timesteps"]), np.nan)
+    )
     return [(int(t), float(s), float(r)) for t, s, r in zip(d["timesteps"], succ, d["results"].mean(axis=1))]
 
 
