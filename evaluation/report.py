@@ -193,8 +193,7 @@ def write_report(df: pd.DataFrame, out: str | Path, baseline: str | None = None)
     lines = ["# MirrorPark evaluation report", ""]
     per_type = ", ".join(f"{t}: {df[df.parking_type == t].case_id.nunique()}" for t in TYPES)
     lines += [
-        f"Cases: {df['case_id'].nunique()} ({per_type});"
-        f" planners: {', '.join(planners)}.",
+        f"Cases: {df['case_id'].nunique()} ({per_type}); planners: {', '.join(planners)}.",
         "",
     ]
     lines += [
