@@ -20,7 +20,7 @@ from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import footprint
 from planners.base import run_episode
 from planners.mirror.mirror_line import mirrored_target
-from planners.mirror.planner import Plan
+from planners.mirror.plans import Plan
 from planners.mirror.policy import MirrorPolicy
 
 from .report import _plt

@@ -14,7 +14,7 @@ def _mirror() -> Policy:
 
 
 def _mirror_paper() -> Policy:
-    from planners.mirror.planner import MirrorPlannerConfig
+    from planners.mirror.config import MirrorPlannerConfig
     from planners.mirror.policy import MirrorPolicy
 
     return MirrorPolicy(MirrorPlannerConfig(linearisation="paper"))

@@ -20,11 +20,13 @@ ParkingTypeName = Literal["parallel", "reverse", "angle"]
 M = TypeVar("M", bound=BaseModel)
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+class StrictModel(BaseModel):
+    """Frozen, hashable, finite numbers only, no unknown fields: the base of every config model."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
-class VehicleConfig(_Strict):
+class VehicleConfig(StrictModel):
     """The vehicle of Table II (SI units)."""
 
     wheelbase: float = Field(2.5, gt=0, le=10)
@@ -46,7 +48,7 @@ class VehicleConfig(_Strict):
         return self
 
 
-class Levels(_Strict):
+class Levels(StrictModel):
     """Factor levels start + step * k for k = 0 .. count - 1."""
 
     start: float
@@ -57,7 +59,7 @@ class Levels(_Strict):
         return [round(self.start + self.step * k, 10) for k in range(self.count)]
 
 
-class TypeGrid(_Strict):
+class TypeGrid(StrictModel):
     road_widths: list[float] = Field(min_length=1)
     slot_length: Levels
     slot_width: Levels
@@ -70,7 +72,7 @@ class TypeGrid(_Strict):
         return self
 
 
-class GridConfig(_Strict):
+class GridConfig(StrictModel):
     """Table III: factor levels per parking type."""
 
     theta0_deg: Levels
@@ -91,14 +93,14 @@ class GridConfig(_Strict):
         return self
 
 
-class CriteriaConfig(_Strict):
+class CriteriaConfig(StrictModel):
     heading_tol_deg: float = Field(3.0, gt=0, le=45)
     min_margin_perpendicular: float = Field(0.1, ge=0, le=2)
     stop_speed: float = Field(0.05, gt=0, le=1)
     time_limit_s: float = Field(180.0, gt=0, le=3600)
 
 
-class RewardConfig(_Strict):
+class RewardConfig(StrictModel):
     distance_scale: float = Field(10.0, gt=0)
     heading_weight: float = Field(1.0, ge=0)
     collision_penalty: float = Field(-10.0, le=0)
@@ -107,13 +109,13 @@ class RewardConfig(_Strict):
     goal_heading_tol_deg: float = Field(3.0, gt=0, le=90)
 
 
-class RenderConfig(_Strict):
+class RenderConfig(StrictModel):
     screen_width: int = Field(800, ge=64, le=4096)
     screen_height: int = Field(420, ge=64, le=4096)
     scaling: float = Field(26.0, gt=0, le=500)
 
 
-class EnvConfig(_Strict):
+class EnvConfig(StrictModel):
     """Everything ``MirrorPark-v0`` can be configured with."""
 
     dt: float = Field(0.1, gt=0, le=1.0)

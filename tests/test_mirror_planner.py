@@ -14,6 +14,8 @@ from fixed_cases import EASY_CASES
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario, VehicleParams
 from planners.base import run_episode
+from planners.common.clearance import gaps
+from planners.mirror.frames import FLIP, planned_controls, to_planned
 from planners.mirror.mirror_line import (
     mirror_line,
     mirrored_target,
@@ -21,7 +23,8 @@ from planners.mirror.mirror_line import (
     parallel_upper_bound,
     reach_lower_bound,
 )
-from planners.mirror.planner import FLIP, Candidate, MirrorPlanner
+from planners.mirror.planner import MirrorPlanner
+from planners.mirror.plans import Candidate
 from planners.mirror.policy import MirrorPolicy
 from planners.mirror.solvers import INACTIVE, QP, BranchAndBound, Disjunction, Enumeration, PiqpQP
 
@@ -63,7 +66,7 @@ def test_negated_commands_follow_the_point_reflection_with_lags():
     u = np.stack([1.5 * np.sin(np.arange(60) / 5), rng.uniform(-0.6, 0.6, 60)], axis=1)
     u[:s, 0] = np.abs(u[:s, 0])
     xi0 = np.array([2.3, 2.5, 0.2, 0.0, 0.0, 0.0])
-    real = pl._rollout(xi0, u, Candidate(1, s))[:: pl.cfg.model_substeps]
+    real = pl.rollout(xi0, u, Candidate(1, s))
     planned = [xi0]
     x = xi0
     for i in range(60):
@@ -99,25 +102,25 @@ def test_qp_solution_satisfies_dynamics_and_bounds():
     pl = MirrorPlanner(g)
     xi0 = g.start.as_array()
     cand = Candidate(-1, 30)
-    c = pl._cost(cand, 0.0)
-    ref = pl._seed(xi0, cand)
-    lin_at = pl._to_planned(ref, cand)
+    c = pl.qp.cost(cand, np.array(g.target), 0.0)
+    ref = pl.shape_seeds.seed(xi0, cand, pl.line)
+    lin_at = to_planned(ref, cand, 2)
     lin_at[30] = FLIP @ lin_at[30]
-    lin = pl.model.jacobian_linearisation(lin_at, pl._planned_controls(ref, cand))
-    qp, _, _, _ = pl._build(xi0, cand, 0.0, c, lin, ref, {}, False)
+    lin = pl.model.jacobian_linearisation(lin_at, planned_controls(ref, cand, P, 0.1, 2))
+    qp, _, _, _ = pl.qp.build(xi0, cand, c, lin, ref, {}, pl.line, False)
     res = PiqpQP().solve(qp)
     assert res.status == "solved"
     z = res.x
     assert np.abs(qp.A @ z - qp.b).max() < 1e-5  # dynamics, initial state, switch link
     assert (z >= qp.x_l - 1e-6).all() and (z <= qp.x_u + 1e-6).all()
-    X = z[pl.x_index]
-    U = z[pl.u_index]
+    X = z[pl.qp.x_index]
+    U = z[pl.qp.u_index]
     assert (X[1:, 3] <= 1e-6).all()  # monodirectional: reversing throughout (planned frame)
     assert abs(X[30, 3]) < 1e-6 and abs(X[-1, 3]) < 1e-6  # stands at the switch and at N
     assert np.abs(U[:, 1]).max() <= 0.6 + 1e-6 and np.abs(X[:, 5]).max() <= 0.6 + 1e-6
     assert U[:30, 0].min() >= -5 - 1e-6 and U[:30, 0].max() <= 3 + 1e-6
     assert U[30:, 0].min() >= -3 - 1e-6 and U[30:, 0].max() <= 5 + 1e-6  # negated later: -a in [-5, 3]
-    np.testing.assert_allclose(z[pl.iS : pl.iS + 2], X[30, :2], atol=1e-6)  # S is the switch point
+    np.testing.assert_allclose(z[pl.qp.iS : pl.qp.iS + 2], X[30, :2], atol=1e-6)  # S is the switch point
 
 
 # ------------------------------------------------------------ branch-and-bound
@@ -246,19 +249,19 @@ def test_guide_batches_give_the_one_by_one_result_and_the_bound_prunes(case_id):
     poses = [start] + list(search.search(start).path.poses[5::15])
 
     def gap(q):
-        return float(search._gaps(np.asarray(q)[None])[0])
+        return float(gaps(g.checker, np.asarray(q)[None])[0])
 
     found = 0
     for q, limit in itertools.product(poses, (2, 24)):  # a binding limit, and the planner's
-        one = search._connect(q, search._tails, limit, gap(q), batch=1)
-        many = search._connect(q, search._tails, limit, gap(q), batch=16)
+        one = search.connect(q, search.tails, limit, gap(q), batch=1)
+        many = search.connect(q, search.tails, limit, gap(q), batch=16)
         assert (one is None) == (many is None)
         if one is not None:
             found += 1
             # (one pass places several paths on a shared arc-length axis: rounding differs)
             assert many[1] == pytest.approx(one[1], abs=1e-9)
             assert many[0].shape == one[0].shape and np.allclose(many[0], one[0], atol=1e-9)
-        assert search._connect(q, search._tails, 24, gap(q), bound=0.0) is None
+        assert search.connect(q, search.tails, 24, gap(q), bound=0.0) is None
     assert found > 0
 
 
@@ -310,19 +313,13 @@ def test_hard_cases_park(case_id):
     assert policy.setup_time_s > 0  # the slot's tables are built at reset, not in a call
 
 
-def _guide_from_start(case_id, config=None, escape=True):
+def _guide_from_start(case_id, config=None):
     from planners.mirror.guide import GuideSearch
 
     env = gym.make("MirrorPark-v0").unwrapped
     _, info = env.reset(options={"scenario": case_id})
     g = info["geometry"]
-    if not escape:
-        GuideSearch._escape_tails, saved = (lambda self: []), GuideSearch._escape_tails
-    try:
-        search = GuideSearch(g, config)
-    finally:
-        if not escape:
-            GuideSearch._escape_tails = saved
+    search = GuideSearch(g, config)
     s = g.start
     return g, search, search.search((s.x, s.y, s.theta))
 
@@ -330,7 +327,9 @@ def _guide_from_start(case_id, config=None, escape=True):
 def test_short_parallel_slot_needs_the_in_slot_tails():
     """1.31 car lengths: no single arc gets in; only back and forth inside the slot does."""
     case = "parallel_rw4.00_sl5.02_sw2.50_th+0_y2.10"
-    assert _guide_from_start(case, escape=False)[2] is None
+    from planners.mirror.guide import GuideConfig
+
+    assert _guide_from_start(case, GuideConfig(in_slot_turns=False))[2] is None
     g, search, guide = _guide_from_start(case)
     assert guide is not None and guide.path.switches >= 2
     assert _shapely_gap(g, guide.path.poses[1:]) >= search.cfg.gap - 1e-6

@@ -10,44 +10,12 @@ import math
 
 import numpy as np
 import shapely
-from ompl import base as ob
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from mirrorpark_env.geometry import ConvexSet
 
-from . import reeds_shepp
-
 OCTILE = 1.0 / math.cos(math.pi / 8)  # worst ratio of 8-connected to straight distance
-
-
-class ReedsShepp:
-    """Reeds-Shepp paths for one turning radius: lengths (ompl) and sampled poses."""
-
-    def __init__(self, turning_radius: float):
-        if not turning_radius > 0:
-            raise ValueError(f"turning_radius: must be > 0 m, got {turning_radius}")
-        self.radius = turning_radius
-        self.space = ob.ReedsSheppStateSpace(turning_radius)
-        self._a, self._b = self.space.allocState(), self.space.allocState()
-
-    def _set(self, state, pose) -> None:
-        state.setXY(float(pose[0]), float(pose[1]))
-        state.setYaw(float(pose[2]))
-
-    def distance(self, start, goal) -> float:
-        """Length [m] of the shortest Reeds-Shepp path from ``start`` to ``goal`` (x, y, theta)."""
-        self._set(self._a, start)
-        self._set(self._b, goal)
-        return self.space.distance(self._a, self._b)
-
-    def sample(self, start, goal, step: float) -> np.ndarray:
-        """Poses (n, 3) along the shortest path, about ``step`` metres apart, ends included.
-
-        Sampled from the path's segments (``reeds_shepp``): ompl's binding would solve the
-        whole problem again for every pose. ompl's length picks the word.
-        """
-        return reeds_shepp.sample(start, goal, self.radius, step, self.distance(start, goal))
 
 
 class GridDistance:

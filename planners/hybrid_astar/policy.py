@@ -17,8 +17,9 @@ from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import VehicleState, to_action
 
 from ..base import Policy
-from .search import HybridAStar, HybridAStarConfig, Path
-from .tracker import PathTracker, TrackerConfig, hold_command
+from ..common.path import Path
+from ..common.tracker import PathTracker, TrackerConfig, hold_command
+from .search import HybridAStar, HybridAStarConfig
 
 
 class HybridAStarPolicy(Policy):

@@ -21,120 +21,53 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from pydantic import Field, model_validator
 
+from mirrorpark_env.config import StrictModel
 from mirrorpark_env.criteria import SuccessCriteria
 from mirrorpark_env.scenario import ScenarioGeometry
 
 from ..base import PlanStats
-from .heuristic import GridDistance, ReedsShepp
+from ..common.clearance import gaps, required_gap
+from ..common.path import Path, arc
+from ..common.reeds_shepp import ReedsShepp
+from .heuristic import GridDistance
 
 
-@dataclass(frozen=True)
-class HybridAStarConfig:
+class HybridAStarConfig(StrictModel):
     """Search resolution, costs and budget. Lengths in metres, costs in metres of driving."""
 
-    xy_resolution: float = 0.1
-    heading_resolution_deg: float = 5.0
-    step: float = 0.4  # arc length of one motion primitive
-    min_step: float = 0.1  # shortest primitive left after cutting one short at an obstacle
-    n_steer: int = 5  # steering angles per direction, odd (straight included)
-    steer_fraction: float = 0.9  # plan curvature to this fraction of the car's limit
-    sample_step: float = 0.05  # pose spacing of the collision checks
-    clearance: float = 0.05  # gap kept to every obstacle, for tracking error
-    reverse_cost: float = 1.5  # per metre reversed (forward: 1)
-    switch_cost: float = 2.0  # per direction switch
-    steer_cost: float = 0.2  # per metre, times |steer| / max steer
-    steer_change_cost: float = 0.5  # per change of steering between primitives, times |change| / max
-    heuristic_weight: float = 1.5
-    analytic_every: int = 2  # try a Reeds-Shepp connection every k-th expansion
-    backward_share: float = 0.5  # of the budget, for the search out of the slot
-    grid_resolution: float = 0.25
-    goal_margin: float = 0.05  # ISO margins plus this, for the goal set
-    goal_heading_deg: float = 2.0
-    window_margin: float = 10.0  # search window beyond the slot and start
-    start_relief: float = 1.0  # radius about a start closer than clearance to an obstacle
-    time_budget_s: float = 10.0
+    xy_resolution: float = Field(0.1, gt=0, le=5)
+    heading_resolution_deg: float = Field(5.0, gt=0, le=90)
+    step: float = Field(0.4, gt=0, le=5)  # arc length of one motion primitive
+    min_step: float = Field(0.1, gt=0, le=5)  # shortest primitive left after cutting one short at an obstacle
+    n_steer: int = Field(5, ge=1, le=99)  # steering angles per direction, odd (straight included)
+    steer_fraction: float = Field(0.9, gt=0, le=1)  # plan curvature to this fraction of the car's limit
+    sample_step: float = Field(0.05, gt=0, le=1)  # pose spacing of the collision checks
+    clearance: float = Field(0.05, ge=0, le=1)  # gap kept to every obstacle, for tracking error
+    reverse_cost: float = Field(1.5, ge=0)  # per metre reversed (forward: 1)
+    switch_cost: float = Field(2.0, ge=0)  # per direction switch
+    steer_cost: float = Field(0.2, ge=0)  # per metre, times |steer| / max steer
+    steer_change_cost: float = Field(0.5, ge=0)  # per change of steering between primitives, times |change| / max
+    heuristic_weight: float = Field(1.5, ge=1, le=100)
+    analytic_every: int = Field(2, ge=1)  # try a Reeds-Shepp connection every k-th expansion
+    backward_share: float = Field(0.5, ge=0, le=1)  # of the budget, for the search out of the slot
+    grid_resolution: float = Field(0.25, gt=0, le=5)
+    goal_margin: float = Field(0.05, ge=0, le=1)  # ISO margins plus this, for the goal set
+    goal_heading_deg: float = Field(2.0, ge=0, le=45)
+    window_margin: float = Field(10.0, gt=0, le=100)  # search window beyond the slot and start
+    start_relief: float = Field(1.0, gt=0, le=10)  # radius about a start closer than clearance to an obstacle
+    time_budget_s: float = Field(10.0, gt=0, le=3600)
 
-    def __post_init__(self) -> None:
-        positive = (
-            "xy_resolution",
-            "heading_resolution_deg",
-            "step",
-            "sample_step",
-            "grid_resolution",
-            "time_budget_s",
-            "window_margin",
-            "min_step",
-            "start_relief",
-        )
-        for name in positive:
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"{name}: must be a finite number > 0, got {v!r}")
-        if not (isinstance(self.n_steer, int) and self.n_steer >= 1 and self.n_steer % 2 == 1):
-            raise ValueError(f"n_steer: must be an odd integer >= 1, got {self.n_steer!r}")
-        if not 0 <= self.backward_share <= 1:
-            raise ValueError(f"backward_share: must be in [0, 1], got {self.backward_share}")
-        if not 0 < self.steer_fraction <= 1:
-            raise ValueError(f"steer_fraction: must be in (0, 1], got {self.steer_fraction}")
+    @model_validator(mode="after")
+    def _consistent(self) -> HybridAStarConfig:
+        if self.n_steer % 2 == 0:
+            raise ValueError(f"n_steer: must be odd (straight included), got {self.n_steer}")
         if self.min_step > self.step:
             raise ValueError(f"min_step: must be <= step={self.step} m, got {self.min_step}")
         if self.sample_step > self.step:
             raise ValueError(f"sample_step: must be <= step={self.step} m, got {self.sample_step}")
-        for name in (
-            "clearance",
-            "reverse_cost",
-            "switch_cost",
-            "steer_cost",
-            "steer_change_cost",
-            "goal_margin",
-            "goal_heading_deg",
-        ):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"{name}: must be >= 0, got {getattr(self, name)!r}")
-        if not self.heuristic_weight >= 1:
-            raise ValueError(f"heuristic_weight: must be >= 1, got {self.heuristic_weight}")
-        if not (isinstance(self.analytic_every, int) and self.analytic_every >= 1):
-            raise ValueError(f"analytic_every: must be an integer >= 1, got {self.analytic_every!r}")
-
-
-@dataclass(frozen=True, eq=False)
-class Path:
-    """A planned path: rear-axle poses ``sample_step`` or less apart.
-
-    ``direction[i]`` is the gear (+1 forward, -1 reverse) driven from pose i - 1 to pose
-    i (``direction[0]`` repeats ``direction[1]``); ``curvature[i]`` likewise.
-    """
-
-    poses: np.ndarray  # (n, 3)
-    direction: np.ndarray  # (n,)
-    curvature: np.ndarray  # (n,)
-
-    @property
-    def length(self) -> float:
-        return float(np.hypot(*np.diff(self.poses[:, :2], axis=0).T).sum())
-
-    @property
-    def switches(self) -> int:
-        return int(np.count_nonzero(np.diff(self.direction)))
-
-    def segments(self) -> list[tuple[int, int]]:
-        """Index ranges [i0, i1] (inclusive) driven in one gear, in order."""
-        cuts = np.flatnonzero(np.diff(self.direction[1:])) + 1
-        bounds = [0, *cuts.tolist(), len(self.poses) - 1]
-        return [(bounds[k], bounds[k + 1]) for k in range(len(bounds) - 1)]
-
-    @classmethod
-    def from_poses(cls, poses: np.ndarray) -> Path:
-        """Gear and curvature from consecutive poses (gear: sign of motion along the heading)."""
-        poses = np.asarray(poses, dtype=float)
-        d = np.diff(poses[:, :2], axis=0)
-        ds = np.hypot(d[:, 0], d[:, 1])
-        along = d[:, 0] * np.cos(poses[:-1, 2]) + d[:, 1] * np.sin(poses[:-1, 2])
-        gear = np.where(along >= 0, 1.0, -1.0)
-        dth = np.remainder(np.diff(poses[:, 2]) + math.pi, 2 * math.pi) - math.pi
-        kappa = np.where(ds > 1e-9, dth / np.maximum(ds, 1e-9) * gear, 0.0)
-        return cls(poses, np.concatenate(([gear[0]], gear)), np.concatenate(([kappa[0]], kappa)))
+        return self
 
 
 @dataclass
@@ -187,19 +120,13 @@ class HybridAStar:
         for gear in (1, -1):
             for u in steers:
                 k = u * self.kappa_max
-                ss = gear * s
-                if abs(k) < 1e-9:
-                    dx, dy = ss, np.zeros_like(ss)
-                else:
-                    dx, dy = np.sin(k * ss) / k, (1 - np.cos(k * ss)) / k
-                offsets.append(np.stack((dx, dy, k * ss), axis=1))
+                offsets.append(arc((0.0, 0.0, 0.0), k if abs(k) >= 1e-9 else 0.0, gear * s))
                 gears.append(gear)
                 steer_of.append(u)
         return np.array(offsets), np.array(gears), np.array(steer_of)
 
     def _gaps(self, poses: np.ndarray) -> np.ndarray:
-        """Lower bound on each pose's distance to the nearest obstacle (< 0: overlap)."""
-        return -self.checker.penetration(poses[:, 0], poses[:, 1], poses[:, 2]).max(axis=1)
+        return gaps(self.checker, poses)
 
     def _in_window(self, poses: np.ndarray) -> np.ndarray:
         x0, x1, y0, y1 = self.window
@@ -210,16 +137,10 @@ class HybridAStar:
         return bool((self._gaps(poses) >= self._required(poses)).all())
 
     def _required(self, poses: np.ndarray) -> np.ndarray | float:
-        """Gap each sampled pose must keep: ``required_gap``, less near a tight start.
-
-        Grid starts may touch the road's edges. Within ``start_relief`` metres of such a
-        start the samples need only keep the start's own gap (at least 0: they never
-        overlap an obstacle), otherwise the car could not leave its start at all.
-        """
-        if self._start_gap >= self.required_gap:
-            return self.required_gap
-        near = np.hypot(poses[:, 0] - self._start[0], poses[:, 1] - self._start[1]) < self.cfg.start_relief
-        return np.where(near, max(self._start_gap, 0.0), self.required_gap)
+        """Gap each sampled pose must keep: ``required_gap``, relieved within ``start_relief``
+        of a start that is closer (``common.clearance``; grid starts may touch the road's
+        edges, and the car must be able to leave them)."""
+        return required_gap(poses, self._start, self._start_gap, self.required_gap, self.cfg.start_relief)
 
     def in_goal_set(self, pose) -> bool:
         """ISO success at ``pose`` (standing still), with ``goal_margin`` and heading to spare."""

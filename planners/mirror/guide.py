@@ -23,36 +23,31 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from pydantic import Field
 
+from mirrorpark_env.config import StrictModel
 from mirrorpark_env.scenario import ParkingType, ScenarioGeometry
 
-from ..hybrid_astar import reeds_shepp
-from ..hybrid_astar.heuristic import ReedsShepp
-from ..hybrid_astar.search import Path
+from ..common import reeds_shepp
+from ..common.clearance import gaps, required_gap
+from ..common.path import Path, arc
+from ..common.reeds_shepp import ReedsShepp
 from .mirror_line import parallel_dark_point
 
 
-@dataclass(frozen=True)
-class GuideConfig:
+class GuideConfig(StrictModel):
     """Settings of the guide search (lengths in m, angles in rad)."""
 
-    steer_fraction: float = 0.9  # paths turn at this fraction of the curvature limit
-    sample_step: float = 0.1  # spacing of the fine collision check
-    coarse_step: float = 0.3  # spacing of the first, cheap check
-    gap: float = 0.04  # clearance every fine sample keeps to the obstacles
-    cusp_cost: float = 3.0  # [m] per direction switch
-    reverse_cost: float = 0.5  # extra cost per metre driven in reverse
-    max_checked: int = 24  # candidate paths checked per call
-    start_relief: float = 1.0  # [m] around the start, the gap may shrink to ``start_gap``
-    start_gap: float = 0.01  # (or to the start's own gap, if smaller): room to leave a kerb
-
-    def __post_init__(self) -> None:
-        for name in ("steer_fraction", "sample_step", "coarse_step", "gap", "start_relief", "start_gap"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name}: must be a finite number > 0, got {v!r}")
-        if self.steer_fraction > 1:
-            raise ValueError(f"steer_fraction: must be in (0, 1], got {self.steer_fraction}")
+    steer_fraction: float = Field(0.9, gt=0, le=1)  # paths turn at this fraction of the curvature limit
+    sample_step: float = Field(0.1, gt=0, le=1)  # spacing of the fine collision check
+    coarse_step: float = Field(0.3, gt=0, le=3)  # spacing of the first, cheap check
+    gap: float = Field(0.04, gt=0, le=1)  # clearance every fine sample keeps to the obstacles
+    cusp_cost: float = Field(3.0, ge=0)  # [m] per direction switch
+    reverse_cost: float = Field(0.5, ge=0)  # extra cost per metre driven in reverse
+    max_checked: int = Field(24, ge=1)  # candidate paths checked per call
+    start_relief: float = Field(1.0, gt=0, le=10)  # [m] around the start, the gap may shrink to ``start_gap``
+    start_gap: float = Field(0.01, gt=0, le=1)  # (or to the start's own gap, if smaller): room to leave a kerb
+    in_slot_turns: bool = True  # tails that park by back-and-forth arcs inside the slot
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,7 +56,6 @@ class Guide:
 
     path: Path
     cost: float
-    via: int  # -1: straight to the target; 0: through a switch pose; 1: set up in the road first; 2: after a first arc
 
     def first_switch(self) -> int:
         """Index of the pose after which the plan's one switch comes: the end of the second
@@ -80,12 +74,13 @@ class GuideSearch:
         self.rs = ReedsShepp(p.r_min / cfg.steer_fraction)
         self.checker = geometry.checker
         self.target = np.array(geometry.target, float)
-        self._tails: list[tuple[np.ndarray, np.ndarray, float]] = []  # via pose, samples to target, cost
+        self.tails: list[tuple[np.ndarray, np.ndarray, float]] = []  # via pose, samples to target, cost
         for v in switch_poses(geometry, self.rs.radius):
             tail = self.rs.sample(v, self.target, cfg.sample_step)
             if self._clear(tail):
-                self._tails.append((v, tail, self._cost(tail)))
-        self._tails += self._escape_tails()
+                self.tails.append((v, tail, self._cost(tail)))
+        if cfg.in_slot_turns:
+            self.tails += self._escape_tails()
         self._road_tails: list[tuple[np.ndarray, np.ndarray, float]] | None = None  # built when first needed
 
     def road_tails(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
@@ -94,12 +89,12 @@ class GuideSearch:
         if self._road_tails is None:
             self._road_tails = []
             for r in road_poses(self.g):
-                best = self._connect(r, self._tails, limit=4)
+                best = self.connect(r, self.tails, limit=4)
                 if best is not None:
                     self._road_tails.append((r, *best))
         return self._road_tails
 
-    def _connect(
+    def connect(
         self, pose, tails, limit: int, start_gap: float | None = None, batch: int = 16, bound: float = math.inf
     ):
         """Cheapest clear (samples, cost) from ``pose`` through one of ``tails``, checking at
@@ -152,24 +147,19 @@ class GuideSearch:
         return float(ds.sum()) + self.cfg.reverse_cost * float(ds[back].sum()) + self.cfg.cusp_cost * switches
 
     def _gaps(self, poses: np.ndarray) -> np.ndarray:
-        return -self.checker.penetration(poses[:, 0], poses[:, 1], poses[:, 2]).max(axis=1)
+        return gaps(self.checker, poses)
 
     def _need(
         self, poses: np.ndarray, start_gap: float | None, gap: float | None = None, floor: float | None = None
     ) -> np.ndarray | float:
-        """Gap each pose must keep: ``gap`` (default ``cfg.gap``), but within ``start_relief``
-        of a start only ``floor`` (default ``cfg.start_gap``; or the start's own gap, if
-        smaller), so that a car standing close to a kerb can leave it (its overhang swings
-        out as it turns away)."""
+        """Gap each pose must keep: ``gap`` (default ``cfg.gap``), relieved near the first
+        pose (a start ``start_gap`` from the obstacles; None: no relief) down to ``floor``
+        (default ``cfg.start_gap``), so that a car standing close to a kerb can leave it."""
         need = self.cfg.gap if gap is None else gap
         if start_gap is None:
             return need
         floor = self.cfg.start_gap if floor is None else floor
-        near_need = min(need, floor, max(start_gap, 0.0) - 1e-6)
-        if near_need >= need:
-            return need
-        near = np.hypot(poses[:, 0] - poses[0, 0], poses[:, 1] - poses[0, 1]) < self.cfg.start_relief
-        return np.where(near, near_need, need)
+        return required_gap(poses, poses[0], start_gap, need, self.cfg.start_relief, floor, slack=1e-6)
 
     def _clear(self, poses: np.ndarray, start_gap: float | None = None, gap: float | None = None) -> bool:
         return bool(np.all(self._gaps(poses) >= self._need(poses, start_gap, gap)))
@@ -198,14 +188,7 @@ class GuideSearch:
 
     def _arc(self, pose, gear: float, kappa: float, length: float) -> np.ndarray:
         """Poses every ``sample_step`` along an arc of curvature ``kappa`` driven in ``gear``."""
-        s = gear * np.arange(0.0, length + 1e-9, self.cfg.sample_step)
-        th = pose[2] + kappa * s
-        if kappa:
-            x = pose[0] + (np.sin(th) - math.sin(pose[2])) / kappa
-            y = pose[1] - (np.cos(th) - math.cos(pose[2])) / kappa
-        else:
-            x, y = pose[0] + s * math.cos(pose[2]), pose[1] + s * math.sin(pose[2])
-        return np.stack([x, y, th], axis=1)
+        return arc(pose, kappa, gear * np.arange(0.0, length + 1e-9, self.cfg.sample_step))
 
     def _turn_chains(self, pose, start_gap: float | None, arcs: int) -> list[tuple[np.ndarray, list[int]]]:
         """Multi-point turns: full-lock arcs in alternating gears that keep turning one way,
@@ -254,26 +237,26 @@ class GuideSearch:
         best: Guide | None = None
         direct = self.rs.sample(pose, self.target, cfg.sample_step)
         if self._clear(direct, start_gap):
-            best = Guide(Path.from_poses(direct), self._cost(direct), -1)
-        found = self._connect(
-            pose, self._tails, cfg.max_checked, start_gap, bound=best.cost if best is not None else math.inf
+            best = Guide(Path.from_poses(direct), self._cost(direct))
+        found = self.connect(
+            pose, self.tails, cfg.max_checked, start_gap, bound=best.cost if best is not None else math.inf
         )
         if found is not None and (best is None or found[1] < best.cost):
-            best = Guide(Path.from_poses(found[0]), found[1], 0)
+            best = Guide(Path.from_poses(found[0]), found[1])
         if best is None:  # set up in the road first
-            found = self._connect(pose, self.road_tails(), cfg.max_checked, start_gap)
+            found = self.connect(pose, self.road_tails(), cfg.max_checked, start_gap)
             if found is not None:
-                best = Guide(Path.from_poses(found[0]), found[1], 1)
+                best = Guide(Path.from_poses(found[0]), found[1])
         if best is None:  # an awkward start: first one arc (or a turn on the spot), then connect
-            tails = self._tails + self.road_tails()
+            tails = self.tails + self.road_tails()
             turns = [chain[: e + 1] for chain, ends in self._turn_chains(pose, start_gap, arcs=8) for e in ends]
             for arc in self._first_moves(pose, start_gap) + turns:
-                found = self._connect(arc[-1], tails, 4)
+                found = self.connect(arc[-1], tails, 4)
                 if found is not None:
                     poses = np.concatenate([arc, found[0][1:]])
                     cost = self._cost(poses)
                     if best is None or cost < best.cost:
-                        best = Guide(Path.from_poses(poses), cost, 2)
+                        best = Guide(Path.from_poses(poses), cost)
         return best
 
 

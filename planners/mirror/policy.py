@@ -19,30 +19,24 @@ from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import VehicleState, to_action
 
 from ..base import Policy
-from .planner import MirrorPlanner, MirrorPlannerConfig, Plan
+from .config import MirrorPlannerConfig, MirrorPolicyConfig
+from .planner import MirrorPlanner
+from .plans import Plan
 
 
 class MirrorPolicy(Policy):
     name = "mirror"
 
-    def __init__(
-        self,
-        config: MirrorPlannerConfig | None = None,
-        drift_position: float = 0.10,
-        drift_heading_deg: float = 3.0,
-        retry_every: int = 5,
-        max_failures: int = 8,
-        max_plans: int = 40,
-        patience: int = 6,
-    ) -> None:
+    def __init__(self, config: MirrorPlannerConfig | None = None, policy: MirrorPolicyConfig | None = None) -> None:
         super().__init__()
         self.config = config or MirrorPlannerConfig()
-        self.drift_position = drift_position
-        self.drift_heading = math.radians(drift_heading_deg)
-        self.retry_every = retry_every
-        self.max_failures = max_failures  # consecutive failed solves before giving up
-        self.max_plans = max_plans  # plans per episode before giving up
-        self.patience = patience  # plans without lowering the cost of standing still
+        self.policy_config = pc = policy or MirrorPolicyConfig()
+        self.drift_position = pc.drift_position
+        self.drift_heading = math.radians(pc.drift_heading_deg)
+        self.retry_every = pc.retry_every
+        self.max_failures = pc.max_failures  # consecutive failed solves before giving up
+        self.max_plans = pc.max_plans  # plans per episode before giving up
+        self.patience = pc.patience  # plans without lowering the cost of standing still
         self.planner: MirrorPlanner | None = None
         self.plan: Plan | None = None
         self.k = 0

@@ -7,26 +7,26 @@ from typing import Any, Literal
 
 from pydantic import Field
 
-from mirrorpark_env.config import ParkingTypeName, _Strict, default_config_path, read_yaml, validate
+from mirrorpark_env.config import ParkingTypeName, StrictModel, default_config_path, read_yaml, validate
 
 
-class HerConfig(_Strict):
+class HerConfig(StrictModel):
     n_sampled_goal: int = Field(4, ge=1, le=32)
     goal_selection_strategy: Literal["future", "final", "episode"] = "future"
 
 
-class CurriculumConfig(_Strict):
+class CurriculumConfig(StrictModel):
     enabled: bool = True
     start_fraction: float = Field(0.2, gt=0, le=1)
     full_at: float = Field(0.6, gt=0, le=1)
 
 
-class EvalConfig(_Strict):
+class EvalConfig(StrictModel):
     every_steps: int = Field(10_000, ge=1)
     episodes: int = Field(30, ge=1, le=10_000)
 
 
-class RLConfig(_Strict):
+class RLConfig(StrictModel):
     algo: Literal["sac", "tqc"] = "sac"
     total_steps: int = Field(200_000, ge=1)
     max_episode_steps: int = Field(300, ge=1, le=1800)

@@ -18,40 +18,27 @@ from __future__ import annotations
 
 import bisect
 import math
-from dataclasses import dataclass
 
 import numpy as np
+from pydantic import Field
 
+from mirrorpark_env.config import StrictModel
 from mirrorpark_env.vehicle import VehicleParams, VehicleState
 
-from .search import Path
+from .path import Path
 
 
-@dataclass(frozen=True)
-class TrackerConfig:
-    cruise_speed: float = 1.0  # [m/s]
-    accel: float = 1.0  # [m/s^2] to reach cruise speed
-    decel: float = 1.0  # [m/s^2] of the planned stop profile
-    preview: float = 1.2  # [m] distance over which lateral errors decay
-    speed_gain: float = 2.0  # [1/s]
-    steer_tolerance: float = 0.03  # [rad] standing re-steer is done within this
-    max_lateral_error: float = 0.15  # [m] beyond this the policy replans
-    max_heading_error_deg: float = 5.0
+class TrackerConfig(StrictModel):
+    """Speeds, gains and tolerances of the path tracker (SI units)."""
 
-    def __post_init__(self) -> None:
-        for name in (
-            "cruise_speed",
-            "accel",
-            "decel",
-            "preview",
-            "speed_gain",
-            "steer_tolerance",
-            "max_lateral_error",
-            "max_heading_error_deg",
-        ):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name}: must be a finite number > 0, got {v!r}")
+    cruise_speed: float = Field(1.0, gt=0, le=3)  # [m/s]
+    accel: float = Field(1.0, gt=0, le=3)  # [m/s^2] to reach cruise speed
+    decel: float = Field(1.0, gt=0, le=5)  # [m/s^2] of the planned stop profile
+    preview: float = Field(1.2, gt=0, le=20)  # [m] distance over which lateral errors decay
+    speed_gain: float = Field(2.0, gt=0, le=100)  # [1/s]
+    steer_tolerance: float = Field(0.03, gt=0, le=0.5)  # [rad] standing re-steer is done within this
+    max_lateral_error: float = Field(0.15, gt=0, le=5)  # [m] beyond this the policy replans
+    max_heading_error_deg: float = Field(5.0, gt=0, le=90)
 
 
 class PathTracker:

@@ -1,4 +1,4 @@
-"""Reeds-Shepp paths as segments, for sampling them with numpy.
+"""Reeds-Shepp paths: lengths from ompl (``ReedsShepp``), and segments for sampling with numpy.
 
 ompl's ``ReedsSheppStateSpace`` gives the shortest path's length, but its Python binding
 hides the path's segments: sampling n poses through ``interpolate`` solves the whole
@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from ompl import base as ob
 
 L, S, R = 1, 0, -1  # segment kinds: turn left, straight, turn right
 _WORDS = (
@@ -250,3 +251,32 @@ def place(start, goals, paths, radius: float, step: float) -> list[np.ndarray]:
     out[first] = np.asarray(start, float)[:3]  # exact ends
     out[np.asarray(bounds[1:]) - 1] = np.asarray(goals, float)[:, :3]
     return np.split(out, bounds[1:-1])
+
+
+class ReedsShepp:
+    """Reeds-Shepp paths for one turning radius: lengths (ompl) and sampled poses."""
+
+    def __init__(self, turning_radius: float):
+        if not turning_radius > 0:
+            raise ValueError(f"turning_radius: must be > 0 m, got {turning_radius}")
+        self.radius = turning_radius
+        self.space = ob.ReedsSheppStateSpace(turning_radius)
+        self._a, self._b = self.space.allocState(), self.space.allocState()
+
+    def _set(self, state, pose) -> None:
+        state.setXY(float(pose[0]), float(pose[1]))
+        state.setYaw(float(pose[2]))
+
+    def distance(self, start, goal) -> float:
+        """Length [m] of the shortest Reeds-Shepp path from ``start`` to ``goal`` (x, y, theta)."""
+        self._set(self._a, start)
+        self._set(self._b, goal)
+        return self.space.distance(self._a, self._b)
+
+    def sample(self, start, goal, step: float) -> np.ndarray:
+        """Poses (n, 3) along the shortest path, about ``step`` metres apart, ends included.
+
+        Sampled from the path's segments (``reeds_shepp``): ompl's binding would solve the
+        whole problem again for every pose. ompl's length picks the word.
+        """
+        return sample(start, goal, self.radius, step, self.distance(start, goal))

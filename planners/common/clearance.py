@@ -1,0 +1,39 @@
+"""Clearance to obstacles, with the one start-relief rule every planner applies.
+
+Grid starts may stand closer to a kerb than a planner's working gap (a car 6.5 cm from the
+far kerb swings its rear overhang ~5 cm out as it turns away). Within ``radius`` of such a
+start a pose need keep only what the start itself has (less ``slack``, never more than
+``floor``): the car may leave a tight spot, not tighten it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mirrorpark_env.geometry import FootprintChecker
+
+
+def gaps(checker: FootprintChecker, poses: np.ndarray) -> np.ndarray:
+    """Lower bound on each pose's distance to the nearest obstacle (< 0: overlap)."""
+    return -checker.penetration(poses[:, 0], poses[:, 1], poses[:, 2]).max(axis=1)
+
+
+def required_gap(
+    poses: np.ndarray,
+    start_xy,
+    start_gap: float,
+    need: float,
+    radius: float,
+    floor: float = math.inf,
+    slack: float = 0.0,
+) -> np.ndarray | float:
+    """Gap each of ``poses`` must keep: ``need``, but within ``radius`` of the start (at
+    ``start_xy``, ``start_gap`` from the nearest obstacle) only
+    ``min(need, floor, max(start_gap, 0) - slack)``."""
+    near_need = min(need, floor, max(start_gap, 0.0) - slack)
+    if near_need >= need:
+        return need
+    near = np.hypot(poses[:, 0] - start_xy[0], poses[:, 1] - start_xy[1]) < radius
+    return np.where(near, near_need, need)

@@ -1,0 +1,149 @@
+"""Checks and scores of a plan's rollout: exact footprint clearance, the truth model's
+verdict, the true cost and the merit that SCP accepts steps by, and the safe stop."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mirrorpark_env.scenario import ScenarioGeometry
+from mirrorpark_env.vehicle import TruthModel
+
+from ..common.clearance import gaps, required_gap
+from .config import MirrorPlannerConfig
+from .frames import XI_A, XI_D, XI_V, real_commands
+from .mirror_line import MirrorLine
+from .plans import Candidate, Plan
+
+
+@dataclass(frozen=True)
+class Start:
+    """Where a planning call starts: rear axle (x, y) and its gap to the nearest obstacle."""
+
+    x: float
+    y: float
+    gap: float
+
+
+class Checks:
+    """Clearance, truth and cost of rollouts in one scenario."""
+
+    def __init__(self, geometry: ScenarioGeometry, cfg: MirrorPlannerConfig):
+        self.g, self.cfg = geometry, cfg
+        self.p = geometry.vehicle
+        self.N = cfg.horizon
+        self.truth = TruthModel(self.p, cfg.dt, 0.01)
+
+    def start(self, xi0: np.ndarray) -> Start:
+        return Start(float(xi0[0]), float(xi0[1]), float(gaps(self.g.checker, xi0[None, :3])[0]))
+
+    # ------------------------------------------------------------- clearance
+    def penetration(self, real_half: np.ndarray) -> np.ndarray:
+        """Footprint penetration of every half step into every obstacle, (2N + 1, K)."""
+        return self.g.checker.penetration(real_half[:, 0], real_half[:, 1], real_half[:, 2])
+
+    def clearance(self, poses: np.ndarray, margin: float, start: Start) -> np.ndarray | float:
+        """Clearance each pose must keep: ``margin``, relieved near a start that is closer
+        than that (``common.clearance``: the car may leave a tight spot, not tighten it)."""
+        return required_gap(
+            poses, (start.x, start.y), start.gap, margin, self.cfg.start_relief, slack=self.cfg.start_slack
+        )
+
+    def collisions(
+        self, real_half: np.ndarray, margin: float, start: Start, pen: np.ndarray | None = None
+    ) -> list[tuple[int, int]]:
+        """(step, obstacle) pairs to constrain: steps next to any half step closer than
+        ``margin`` (``pen``: the rollout's ``penetration``, if already computed)."""
+        pen = self.penetration(real_half) if pen is None else pen
+        need = self.clearance(real_half, margin, start) if margin > 0 else 0.0
+        hit = pen > -1e-9 - np.reshape(need, (-1, 1))
+        out = set()
+        m = self.cfg.model_substeps
+        for h, k in zip(*np.nonzero(hit)):
+            for j in {h // m, -(-h // m)}:  # the control steps around half step h
+                if 1 <= j <= self.N:
+                    out.add((int(j), int(k)))
+        return sorted(out)
+
+    def clear_and_stopped(
+        self, poses: list[np.ndarray], end: np.ndarray, start: Start, clearance: float = 0.005
+    ) -> bool:
+        q = np.concatenate(poses)
+        pen = self.g.checker.penetration(q[:, 0], q[:, 1], q[:, 2]).max(axis=1)
+        clear = bool(np.all(pen < -self.clearance(q, clearance, start)))
+        return bool(clear and abs(end[XI_V]) < 0.05)
+
+    def truth_safe(self, xi0: np.ndarray, u_real: np.ndarray, start: Start, clearance: float = 0.005) -> bool:
+        """On the environment's own model (0.01 s sub-steps) the plan keeps clear and ends
+        standing, so that whatever comes after it, the car is at rest."""
+        sub = self.truth.rollout(xi0, u_real)
+        return self.clear_and_stopped([sub[:, :3]], sub[-1, :6], start, clearance)
+
+    # ------------------------------------------------------------------ cost
+    def true_cost(self, real: np.ndarray, goal: np.ndarray, theta_t: float) -> tuple[float, float, float]:
+        """(cost, position error, heading error) of real states at the control steps."""
+        cfg = self.cfg
+        tx, ty, _ = goal
+        pos_err = float(np.hypot(real[-1, 0] - tx, real[-1, 1] - ty))
+        th_err = float(abs(real[-1, 2] - theta_t))
+        run = float((np.hypot(real[1:, 0] - tx, real[1:, 1] - ty) ** 2).sum()) * cfg.w_position * cfg.dt
+        return cfg.w_terminal_position * pos_err**2 + cfg.w_terminal_heading * th_err**2 + run, pos_err, th_err
+
+    def merit(self, real_half: np.ndarray, goal: np.ndarray, theta_t: float, pen: np.ndarray | None = None) -> float:
+        """True cost of a rollout plus the exact penalty on its footprint's penetration
+        (``pen``: its ``penetration``, if already computed)."""
+        cfg = self.cfg
+        cost, _, _ = self.true_cost(real_half[:: cfg.model_substeps], goal, theta_t)
+        pen = (self.penetration(real_half) if pen is None else pen).max(axis=1)
+        return cost + cfg.w_slack * float(np.clip(pen + cfg.obstacle_margin, 0, None).sum())
+
+    def settled(self, real_half: np.ndarray, goal: np.ndarray, theta_t: float) -> bool:
+        """The rollout ends standing this close to its goal: another SCP round would only polish it."""
+        _, pos_err, th_err = self.true_cost(real_half[:: self.cfg.model_substeps], goal, theta_t)
+        return pos_err < self.cfg.settle_position and th_err < self.cfg.settle_heading
+
+    # ------------------------------------------------------------- safe stop
+    def safe_prefix(
+        self,
+        xi0: np.ndarray,
+        cand: Candidate,
+        u_planned: np.ndarray,
+        hits: list[tuple[int, int]],
+        goal: np.ndarray,
+        theta_t: float,
+        start: Start,
+        line: MirrorLine,
+    ) -> Plan | None:
+        """The colliding plan's start, braking to a stop before its first contact.
+
+        Verified on the environment's own model with the same clearance as full plans;
+        used when no candidate yields a clear plan that makes progress.
+        """
+        p = self.p
+        u_real = real_commands(u_planned, cand)
+        first = min(i for i, _ in hits)
+        for cut in (first - 3, first - 8, first - 15):
+            if cut < 3:
+                break
+            s, states, poses, cmds = xi0, [xi0], [], []
+            for i in range(self.N):
+                if i < cut:
+                    a, d = u_real[i]
+                else:  # brake to a stop, wheels held
+                    a = max(p.a_min, min(p.a_max, -s[XI_V] / 0.3 - s[XI_A] if abs(s[XI_V]) > 1e-3 else -s[XI_A]))
+                    d = s[XI_D]
+                sub = self.truth.step(s, a, d)
+                poses.append(sub[:, :3])
+                s = sub[-1, :6]
+                states.append(s)
+                cmds.append((a, d))
+            if self.clear_and_stopped(poses, s, start):
+                real = np.array(states)
+                cost, pos_err, th_err = self.true_cost(real, goal, theta_t)
+                sw = cand.switch if cand.switch is not None and cand.switch < cut else None
+                S = tuple(real[sw, :2]) if sw else None
+                return Plan(
+                    np.array(cmds), real, Candidate(cand.direction, sw), S, line, real, cost, (pos_err, th_err), True
+                )
+        return None

@@ -1,0 +1,62 @@
+"""Validated settings of the mirrored-target planner and its policy (lengths in m, angles in rad)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from mirrorpark_env.config import StrictModel
+
+
+class MirrorPlannerConfig(StrictModel):
+    """Weights, limits and solver settings of the mirrored-target planner."""
+
+    horizon: int = Field(60, ge=10, le=400)  # N (Table II)
+    dt: float = Field(0.1, gt=0, le=1)
+    model_substeps: int = Field(2, ge=1, le=20)
+    linearisation: Literal["scp", "paper"] = "scp"
+    max_iterations: int = Field(6, ge=1, le=1000)  # SCP + Algorithm I rounds per candidate
+    max_trust_scale: float = Field(64.0, gt=0)  # give up on a candidate when the trust penalty grows past this
+    w_trust_position: float = Field(0.5, ge=0)  # SCP trust region, as a penalty per m^2 of planned x, y moved
+    w_trust_heading: float = Field(2.0, ge=0)  # ... and per rad^2 of heading
+    converge_position: float = Field(0.02, gt=0)  # [m] SCP stops when the rollout moves less
+    converge_heading: float = Field(0.01, gt=0)  # [rad]
+    settle_position: float = Field(0.06, ge=0)  # [m] ... or when a clear rollout ends this close to its goal
+    settle_heading: float = Field(0.02, ge=0)  # [rad] (0: never)
+    w_position: float = Field(0.2, ge=0)  # running cost per m^2 toward the mirrored target
+    w_heading: float = Field(0.2, ge=0)  # per rad^2
+    w_terminal_position: float = Field(400.0, ge=0)
+    w_terminal_heading: float = Field(400.0, ge=0)
+    w_terminal_accel: float = Field(1.0, ge=0)
+    w_accel_cmd: float = Field(0.02, ge=0)
+    w_steer_cmd: float = Field(0.05, ge=0)
+    w_accel_rate: float = Field(0.5, ge=0)
+    w_steer_rate: float = Field(2.0, ge=0)
+    obstacle_margin: float = Field(0.04, ge=0, le=1)  # [m] planned clearance to infeasible regions
+    w_slack: float = Field(1e5, gt=0)  # exact penalty per m of obstacle-row violation (rows are soft)
+    check_margin: float = Field(0.01, ge=0, le=1)  # [m] a rollout closer than this to an obstacle is not clear
+    start_relief: float = Field(0.5, gt=0, le=10)  # [m] around a start closer than a margin, only its own gap ...
+    start_slack: float = Field(0.0005, ge=0, le=0.1)  # [m] ... less this much is kept
+    mirror_margin: float = Field(1.1, ge=1, le=3)  # reverse / angle: l_mi >= margin * r_min (1 - cos psi)
+    node_limit: int = Field(3, ge=1, le=100_000)  # branch-and-bound nodes per MIQP
+    kkt_solver: Literal["sparse_ldlt", "sparse_multistage", "auto"] = "auto"  # piqp's (solvers.PiqpQP)
+    qp_tolerance: float = Field(1e-4, gt=0, lt=1)  # piqp's absolute residual and duality-gap tolerance
+    seed_swings: tuple[float, ...] = (-0.8, -0.4, 0.4, 0.8)  # [rad] heading excursions tried as seeds
+    refine_candidates: int = Field(2, ge=1)  # candidates refined by SCP after the seed search
+    time_limit_s: float = Field(0.5, gt=0)  # branch and bound's wall-clock safety net per MIQP
+    guide: bool = True  # seed each plan from a geometric guide (guide.py); SCP only
+    guide_iterations: int = Field(2, ge=1, le=1000)  # SCP rounds on a guided candidate
+    seed_speed: float = Field(1.5, gt=0, le=3)  # [m/s] cruise speed of the guided seed rollout
+    seed_accel: float = Field(1.5, gt=0, le=3)  # [m/s^2] its acceleration and planned deceleration
+
+
+class MirrorPolicyConfig(StrictModel):
+    """When the policy replans, and when it gives up (Fig. 11's decision loop)."""
+
+    drift_position: float = Field(0.10, gt=0)  # [m] replan when the car is this far off the plan
+    drift_heading_deg: float = Field(3.0, gt=0, le=180)
+    retry_every: int = Field(5, ge=0)  # control steps to wait after a failed solve
+    max_failures: int = Field(8, ge=1)  # consecutive failed solves before giving up
+    max_plans: int = Field(40, ge=1)  # plans per episode before giving up
+    patience: int = Field(6, ge=1)  # plans without lowering the cost of standing still

@@ -1,0 +1,249 @@
+"""The QP of one SCP round: cost (Eq. 33 toward the mirrored target), dynamics, bounds,
+the mirror line (Eq. 37) and the obstacle rows (Eq. 40), on fixed sparsity patterns.
+
+Patterns are built once and refilled: the cost per switch step (shared by every planner
+with the same config, in a bounded cache), the equality rows (initial state, dynamics,
+switch link) per switch step. Only the obstacle rows are assembled anew each round.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+import scipy.sparse as sp
+
+from mirrorpark_env.vehicle import VehicleParams
+
+from .config import MirrorPlannerConfig
+from .frames import FLIP, XI_A, XI_D, XI_TH, XI_V, XI_X, XI_Y, to_planned
+from .layout import iu, ix, switch_index, u_index, x_index
+from .mirror_line import MirrorLine
+from .model import NU, NX
+from .obstacles import ObstacleRows, Rows
+from .plans import Candidate
+from .solvers import INACTIVE, QP, CscPattern, Disjunction
+
+
+class MirrorQP:
+    """Builds the QP of a round for one scenario and config."""
+
+    def __init__(self, params: VehicleParams, cfg: MirrorPlannerConfig, obstacles: ObstacleRows):
+        self.p, self.cfg, self.obstacles = params, cfg, obstacles
+        N = self.N = cfg.horizon
+        self.iS = switch_index(N)
+        self.nz = self.iS + 2
+        self.x_index = x_index(N)
+        self.u_index = u_index(N)
+        self._dyn_rows, self._dyn_cols = _dynamics_pattern(N)
+        self._n_dyn_rows = NX + NX * N
+        self._eq_patterns: dict[int, CscPattern] = {}  # per switch-link step
+        self._g_line: sp.csc_matrix | None = None  # G of a QP without obstacle rows
+        self._bounds: dict[tuple[int, int | None], tuple[np.ndarray, np.ndarray]] = {}
+        self._costs: dict[int | None, tuple] = {}  # this planner's view of ``cost_pattern``
+
+    # ------------------------------------------------------------------ cost
+    def cost(self, cand: Candidate, goal: np.ndarray, theta_t: float) -> np.ndarray:
+        """c of sum w * residual^2 toward ``goal`` (the real target or a guide's pose),
+        mirrored through S after the switch (piqp: 1/2 z'Pz + c'z)."""
+        L, w, kinds, _ = self._cost_entry(cand.switch)
+        kappa = 1.0 if cand.switch is not None else 0.0
+        tx, ty, _ = goal
+        k0 = np.zeros(len(w))  # residual = p_i - 2 kappa S - (1 - 2 kappa) goal
+        k0[kinds == 1] = -(1 - 2 * kappa) * tx
+        k0[kinds == 2] = -(1 - 2 * kappa) * ty
+        k0[kinds == 3] = -theta_t
+        return 2.0 * (L.T @ (w * k0))
+
+    def _cost_entry(self, s: int | None) -> tuple:
+        if s not in self._costs:
+            self._costs[s] = cost_pattern(self.cfg, s)
+        return self._costs[s]
+
+    # ----------------------------------------------------------------- build
+    def build(
+        self,
+        xi0: np.ndarray,
+        cand: Candidate,
+        c: np.ndarray,
+        lin,
+        ref_real: np.ndarray | None,
+        theta_set,
+        line: MirrorLine,
+        trust: bool,
+        mirror: bool = True,
+        trust_scale: float = 1.0,
+    ) -> tuple[QP, list[Disjunction], np.ndarray, list[int]]:
+        """(QP, disjunctions, each row's enforced lower bound, preferred rows) of one round."""
+        cfg = self.cfg
+        s = cand.switch
+        vals, b = self._equalities(xi0, cand, lin)
+        x_l, x_u = self.box(cand)
+        if trust and ref_real is not None:  # penalty w (z - z_ref)^2: its linear part
+            pl = to_planned(ref_real, cand, cfg.model_substeps)
+            c = c.copy()
+            for j, w in ((XI_X, cfg.w_trust_position), (XI_Y, cfg.w_trust_position), (XI_TH, cfg.w_trust_heading)):
+                c[self.x_index[1:, j]] -= 2.0 * trust_scale * w * pl[1:, j]
+        rows = Rows()
+        self._mirror_row(rows, line, s is not None and mirror)
+        if theta_set and ref_real is not None:
+            self.obstacles.add(rows, cand, ref_real, theta_set)
+        # Every row is soft: row + slack >= lower bound, slack >= 0 at w_slack per m (an
+        # exact penalty). No QP is infeasible; the exact footprint check decides.
+        n_s = len(rows.h_l)
+        nz = self.nz + n_s
+        G = self._inequalities(rows, n_s, nz)
+        pattern, p_vals, t_vals = self._cost_entry(s)[3]
+        P = pattern.matrix(p_vals + (trust_scale if trust else 0.0) * t_vals, (nz, nz))
+        A = self._eq_pattern(s).matrix(vals, (self._n_dyn_rows + 2, nz))
+        c = np.concatenate([c, np.full(n_s, cfg.w_slack)])
+        x_l = np.concatenate([x_l, np.zeros(n_s)])
+        x_u = np.concatenate([x_u, np.full(n_s, np.inf)])
+        qp = QP(P, c, A, b, G, np.array(rows.h_l, float), np.array(rows.h_u, float), x_l, x_u)
+        return qp, rows.disj, np.array(rows.active, float), rows.preferred
+
+    def _equalities(self, xi0: np.ndarray, cand: Candidate, lin) -> tuple[np.ndarray, np.ndarray]:
+        """Values and right-hand side of: initial state, dynamics (flip at the switch), switch link."""
+        A_, B_, c_ = lin
+        s = cand.switch
+        M = A_.copy()
+        if s is not None:  # xi_{s+1} = A_s (FLIP xi_s) + B_s u_s + c_s
+            M[s] = A_[s] @ FLIP
+        blocks = np.concatenate([np.ones((self.N, NX, 1)), -M, -B_], axis=2)  # per row: [1, -M row, -B row]
+        vals = np.concatenate([np.ones(NX), blocks.reshape(-1), [1.0, -1.0, 1.0, -1.0]])
+        b = np.concatenate([xi0, c_.reshape(-1), [0.0, 0.0]])
+        return vals, b
+
+    def _mirror_row(self, rows: Rows, ln: MirrorLine, on: bool) -> None:
+        """Row 0: the switch point on the mirror line (parallel, to 2 cm) or beyond it."""
+        n0, n1 = ln.normal
+        rows.g_rows += [0, 0]
+        rows.g_cols += [self.iS, self.iS + 1]
+        rows.g_vals += [n0, n1]
+        bound = n0 * ln.target_xy[0] + n1 * ln.target_xy[1] + ln.distance
+        if not on:
+            rows.h_l.append(INACTIVE), rows.h_u.append(np.inf)
+        elif ln.fixed:
+            rows.h_l.append(bound), rows.h_u.append(bound + 0.02)  # on the line (to 2 cm)
+        else:
+            rows.h_l.append(bound), rows.h_u.append(np.inf)
+        rows.active.append(rows.h_l[-1])
+
+    def _inequalities(self, rows: Rows, n_s: int, nz: int) -> sp.csc_matrix:
+        """G with one slack column per row."""
+        if n_s == 1 and self._g_line is not None:  # the mirror-line row alone: the same G every time
+            return self._g_line
+        # Triplets to CSC through CscPattern: scipy's COO route costs ~4x as much per call.
+        g_rows = np.concatenate([rows.g_rows, np.arange(n_s)])
+        g_cols = np.concatenate([rows.g_cols, self.nz + np.arange(n_s)])
+        G = CscPattern(g_rows, g_cols, (n_s, nz)).matrix(np.concatenate([rows.g_vals, np.ones(n_s)]))
+        if n_s == 1:
+            self._g_line = G
+        return G
+
+    def _eq_pattern(self, s: int | None) -> CscPattern:
+        """Pattern of the equality rows for switch step ``s`` (its link row names xi_s)."""
+        link_s = s if s is not None else self.N
+        if link_s not in self._eq_patterns:
+            n = self._n_dyn_rows
+            rows = np.concatenate([self._dyn_rows, [n, n, n + 1, n + 1]])
+            cols = np.concatenate([self._dyn_cols, [self.iS, ix(link_s, XI_X), self.iS + 1, ix(link_s, XI_Y)]])
+            self._eq_patterns[link_s] = CscPattern(rows, cols, (n + 2, self.nz))
+        return self._eq_patterns[link_s]
+
+    def box(self, cand: Candidate) -> tuple[np.ndarray, np.ndarray]:
+        """Variable bounds (Table II) for a direction and switch step; speed zero at the
+        switch and at N. Commands after the switch are negated, so are their bounds."""
+        key = (cand.direction, cand.switch)
+        if key not in self._bounds:
+            self._bounds[key] = _box(self.p, self.N, self.nz, self.x_index, self.u_index, cand)
+        return self._bounds[key]
+
+
+def _box(p: VehicleParams, N: int, nz: int, xi: np.ndarray, ui: np.ndarray, cand: Candidate):
+    s = cand.switch
+    x_l, x_u = np.full(nz, -np.inf), np.full(nz, np.inf)
+    steps = np.arange(1, N + 1)
+    after = (steps > s) if s is not None else np.zeros(N, bool)
+    v_lo, v_hi = (0.0, p.v_max) if cand.direction > 0 else (p.v_min, 0.0)
+    xv, xa, xd = (xi[steps, j] for j in (XI_V, XI_A, XI_D))
+    x_l[xv], x_u[xv] = v_lo, v_hi
+    x_l[xa] = np.where(after, -p.a_max, p.a_min)
+    x_u[xa] = np.where(after, -p.a_min, p.a_max)
+    x_l[xd], x_u[xd] = -p.max_steer, p.max_steer
+    after_u = (np.arange(N) >= s) if s is not None else np.zeros(N, bool)
+    ua, ud = ui[:, 0], ui[:, 1]
+    x_l[ua] = np.where(after_u, -p.a_max, p.a_min)
+    x_u[ua] = np.where(after_u, -p.a_min, p.a_max)
+    x_l[ud], x_u[ud] = -p.max_steer, p.max_steer
+    for i in ([s] if s is not None else []) + [N]:  # stands at the switch; every plan ends stopped
+        x_l[ix(i, XI_V)] = x_u[ix(i, XI_V)] = 0.0
+    x_l.flags.writeable = x_u.flags.writeable = False
+    return x_l, x_u
+
+
+def _dynamics_pattern(N: int) -> tuple[np.ndarray, np.ndarray]:
+    """Triplet pattern of the equality rows: initial state, then dynamics."""
+    rows, cols = [], []
+    for j in range(NX):
+        rows.append(j), cols.append(ix(0, j))
+    r0 = NX
+    for i in range(N):
+        for a in range(NX):
+            r = r0 + NX * i + a
+            rows.append(r), cols.append(ix(i + 1, a))
+            for b in range(NX):
+                rows.append(r), cols.append(ix(i, b))
+            for b in range(NU):
+                rows.append(r), cols.append(iu(i, b))
+    return np.array(rows), np.array(cols)
+
+
+@lru_cache(maxsize=256)
+def cost_pattern(cfg: MirrorPlannerConfig, s: int | None):
+    """(L, w, residual kinds, (P's pattern with the trust penalty, P's values, trust's
+    values)) for switch step ``s``; built once per config and shared by episodes."""
+    N = cfg.horizon
+    iS = switch_index(N)
+    nz = iS + 2
+    kappa = 1.0 if s is not None else 0.0
+    rows, cols, vals, kinds, w = [], [], [], [], []
+    r = 0
+
+    def add(entries, kind, weight):
+        nonlocal r
+        for col, v in entries:
+            rows.append(r), cols.append(col), vals.append(v)
+        kinds.append(kind), w.append(weight)
+        r += 1
+
+    for i in range(1, N + 1):
+        wp = cfg.w_terminal_position if i == N else cfg.w_position * cfg.dt
+        wh = cfg.w_terminal_heading if i == N else cfg.w_heading * cfg.dt
+        for j, kind in ((XI_X, 1), (XI_Y, 2)):
+            add([(ix(i, j), 1.0), (iS + j, -2.0 * kappa)], kind, wp)
+        add([(ix(i, XI_TH), 1.0)], 3, wh)
+    add([(ix(N, XI_A), 1.0)], 0, cfg.w_terminal_accel)
+    for i in range(N):
+        add([(iu(i, 0), 1.0)], 0, cfg.w_accel_cmd * cfg.dt)
+        add([(iu(i, 1), 1.0)], 0, cfg.w_steer_cmd * cfg.dt)
+        if i > 0 and i != s:  # no rate cost across the switch (commands flip)
+            add([(iu(i, 0), 1.0), (iu(i - 1, 0), -1.0)], 0, cfg.w_accel_rate)
+            add([(iu(i, 1), 1.0), (iu(i - 1, 1), -1.0)], 0, cfg.w_steer_rate)
+    L = sp.csr_matrix((vals, (rows, cols)), shape=(r, nz))
+    w = np.asarray(w)
+    P = sp.triu(2.0 * (L.T @ sp.diags(w) @ L)).tocsc()  # piqp reads the upper triangle
+    # P + scale * trust shares one pattern: (pattern, P's values, trust's values).
+    Pc, T = P.tocoo(), _trust_diag(cfg, nz).tocoo()
+    pattern = CscPattern(np.concatenate([Pc.row, T.row]), np.concatenate([Pc.col, T.col]), P.shape)
+    zp, zt = np.zeros(Pc.nnz), np.zeros(T.nnz)
+    with_trust = (pattern, np.concatenate([Pc.data, zt]), np.concatenate([zp, T.data]))
+    return L, w, np.asarray(kinds), with_trust
+
+
+def _trust_diag(cfg: MirrorPlannerConfig, nz: int) -> sp.csc_matrix:
+    d = np.zeros(nz)
+    xi = x_index(cfg.horizon)
+    for j, w in ((XI_X, cfg.w_trust_position), (XI_Y, cfg.w_trust_position), (XI_TH, cfg.w_trust_heading)):
+        d[xi[1:, j]] = 2.0 * w
+    return sp.diags(d, format="csc")

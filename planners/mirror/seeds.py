@@ -1,0 +1,186 @@
+"""First references for SCP: where each plan's linearisation starts.
+
+- ``GuidedSeed``: the planning model driven along a geometric guide (``guide.py``) by the
+  shared path tracker, up to the guide's first switch: a candidate (gear, switch step),
+  a rollout and the goal of the plan.
+- ``ShapeSeeds``: without a guide, rollouts of the manoeuvre's classic shape for every
+  candidate (both gears, two switch steps, no switch) and a few heading excursions,
+  ranked by merit (a multi-start: a rollout costs about a millisecond, an SCP tens).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from mirrorpark_env.angles import unwrap_near
+from mirrorpark_env.scenario import ParkingType, ScenarioGeometry
+from mirrorpark_env.vehicle import TruthModel, VehicleState
+
+from ..common.path import Path
+from ..common.tracker import PathTracker, TrackerConfig
+from .config import MirrorPlannerConfig
+from .frames import XI_A, XI_TH, XI_V, XI_Y
+from .guide import Guide
+from .mirror_line import MirrorLine
+from .plans import Candidate
+
+TURN = math.inf  # seed mode: steer toward the target heading in both segments
+
+
+class GuidedSeed:
+    """Tracks a guide on the planning model (``coarse``: the truth model at half steps)."""
+
+    def __init__(self, geometry: ScenarioGeometry, cfg: MirrorPlannerConfig, coarse: TruthModel):
+        self.p, self.N, self.coarse = geometry.vehicle, cfg.horizon, coarse
+        self.target = np.array(geometry.target, float)
+        self.tracker_cfg = TrackerConfig(cruise_speed=cfg.seed_speed, accel=cfg.seed_accel, decel=cfg.seed_accel)
+
+    def seed(self, xi0: np.ndarray, guide: Guide) -> tuple[Candidate, np.ndarray, np.ndarray]:
+        """(candidate, real rollout at half steps, goal pose) from tracking the guide's first
+        two gear segments, cut so that the car stands by N."""
+        poses = guide.path.poses
+        end = guide.first_switch()
+        for _ in range(3):
+            path = Path.from_poses(poses[: end + 1])
+            real, segs, reached = self.track(xi0, path)
+            if segs[-1] < 0 or reached[-1] >= end:  # stood at the portion's end within N
+                break
+            back = max(0, self.N - 20)  # cut where the car was 2 s before the horizon
+            end = max(reached[back], 2)
+        gear = path.direction[1]
+        seg = np.asarray(segs)
+        s = int(np.argmax(seg >= 1)) if (seg >= 1).any() else None
+        if s is not None and (s < 2 or s > self.N - 2):
+            s = None
+        goal = self.target.copy() if end >= len(poses) - 1 else poses[end].copy()
+        goal[2] = unwrap_near(goal[2], xi0[XI_TH])
+        return Candidate(int(gear), s), real, goal
+
+    def track(self, xi0: np.ndarray, path: Path) -> tuple[np.ndarray, list[int], list[int]]:
+        """Roll the planning model out under the path tracker for N steps: the half-step real
+        states, the tracker's segment per control step (-1 once done), the pose index reached."""
+        tracker = PathTracker(path, self.p, self.tracker_cfg)
+        state = tuple(float(v) for v in xi0[:6])
+        out, segs, reached = [(*state, 0.0)], [0], [0]
+        command, step = tracker.command_at, self.coarse.step_rows
+        for _ in range(self.N):
+            sub = step(state, *command(*state))
+            out += sub
+            state = sub[-1][:6]
+            segs.append(-1 if tracker.done else tracker.seg)
+            reached.append(tracker.j)
+        return np.array(out)[:, :6], segs, reached
+
+
+class ShapeSeeds:
+    """The multi-start seeds of a plan without a guide."""
+
+    def __init__(self, geometry: ScenarioGeometry, cfg: MirrorPlannerConfig, coarse: TruthModel):
+        self.g, self.cfg, self.coarse = geometry, cfg, coarse
+        self.p, self.N = geometry.vehicle, cfg.horizon
+
+    @property
+    def first_direction(self) -> int:
+        """Parallel parking reverses to the mirror line first; reverse and angle drive forward."""
+        return -1 if self.g.parking_type is ParkingType.PARALLEL else 1
+
+    def candidates(self, state: VehicleState, line: MirrorLine) -> list[Candidate]:
+        """(direction, switch step) pairs to score: both directions (one while moving), two
+        switch steps, and no switch."""
+        first = self.first_direction
+        if abs(state.v) > 0.1:
+            dirs = [1 if state.v > 0 else -1]
+        else:
+            dirs = [first, -first]
+        s_est = self._switch_estimate(state, line)
+        steps = sorted({s_est, min(self.N - 15, max(12, int(1.6 * s_est)))})
+        out = [Candidate(d, s) for d in dirs for s in steps]
+        out += [Candidate(d, None) for d in dirs]  # no switch: straight on to the target
+        return out
+
+    def _switch_estimate(self, state: VehicleState, line: MirrorLine) -> int:
+        off = line.offset((state.x, state.y))
+        dist = abs(line.distance - off) + 0.5
+        t = 2.0 * math.sqrt(dist / 1.0)  # accelerate then brake at about 1 m/s^2
+        return int(min(max(round(t / self.cfg.dt), 8), self.N - 20))
+
+    def ranked(
+        self, xi0: np.ndarray, cands: list[Candidate], line: MirrorLine, merit: Callable[[np.ndarray], float]
+    ) -> list[tuple[Candidate, np.ndarray]]:
+        """Each candidate's best seed (by ``merit``), best candidates first."""
+        scored = []
+        for cand in cands:
+            swings = [None] if cand.switch is None else [None, TURN, *self.cfg.seed_swings]
+            for sw in swings:
+                real = self.seed(xi0, cand, line, sw)
+                scored.append((merit(real), cand, real))
+        scored.sort(key=lambda t: t[0])
+        out, seen = [], set()
+        for _, cand, real in scored:
+            if cand not in seen:
+                seen.add(cand)
+                out.append((cand, real))
+        return out
+
+    def seed(self, xi0: np.ndarray, cand: Candidate, line: MirrorLine, swing: float | None = None) -> np.ndarray:
+        """A real rollout of the manoeuvre's classic shape, to linearise about first.
+
+        Speed: a sine over each segment, sized to the distance the segment has to cover.
+        Steering: a heading controller tracking ``_heading_ref``.
+        """
+        N, dt, p = self.N, self.cfg.dt, self.p
+        s = cand.switch if cand.switch is not None else N
+        tx, ty, tth = self.g.target
+        tth = unwrap_near(tth, xi0[XI_TH])
+        u_t = np.array([math.cos(tth), math.sin(tth)])
+        S_guess = np.array([tx, ty]) + line.distance * np.array(line.normal)
+        if not line.fixed:  # reverse, angle: out along the slot axis to the car's lane
+            lam = (xi0[XI_Y] - S_guess[1]) / u_t[1] if abs(u_t[1]) > 1e-6 else 0.0
+            S_guess = S_guess + max(lam, 0.0) * u_t
+        p0 = xi0[:2]
+        if cand.switch is not None:
+            d1 = float(np.hypot(*(S_guess - p0))) + 0.3
+        else:
+            d1 = float(np.hypot(tx - p0[0], ty - p0[1]))
+        d2 = float(np.hypot(S_guess[0] - tx, S_guess[1] - ty)) + 0.3
+        T1, T2 = max(s, 1) * dt, max(N - s, 1) * dt
+        vc1 = min(1.5, d1 * math.pi / (2 * T1))
+        vc2 = min(1.5, d2 * math.pi / (2 * T2))
+        out = [xi0]
+        state = xi0.copy()
+        for i in range(N):
+            seg1 = cand.switch is None or i < s
+            tau = (i + 1) / s if seg1 else (i + 1 - s) / max(N - s, 1)
+            d = cand.direction if seg1 else -cand.direction
+            v_ref = d * (vc1 if seg1 else vc2) * math.sin(math.pi * min(tau, 1.0))
+            th_ref = self._heading_ref(cand, line, swing, seg1, tau, tth, xi0[XI_TH])
+            a_cmd = max(p.a_min, min(p.a_max, 3.0 * (v_ref - state[XI_V]) - 0.5 * state[XI_A]))
+            sgn = 1.0 if v_ref >= 0 else -1.0
+            d_cmd = max(-p.max_steer, min(p.max_steer, 2.5 * (th_ref - state[XI_TH]) * sgn))
+            sub = self.coarse.step(state, a_cmd, d_cmd)[:, :6]
+            out.extend(sub)
+            state = sub[-1]
+        return np.array(out)
+
+    def _heading_ref(self, cand, line, swing, seg1: bool, tau: float, tth: float, th0: float) -> float:
+        """Heading to steer toward at phase ``tau`` of a segment: for parallel parking an
+        S-curve reversing to the mirror line then forward to the target heading, for
+        reverse and angle parking forward toward the switch heading, then full lock back."""
+        psi = line.psi if line.fixed else 0.0
+        first = cand.direction == self.first_direction
+        if cand.switch is None:
+            return tth
+        if seg1 and swing == TURN:  # both segments rotate toward the target: a 3-point turn
+            return tth
+        if seg1 and swing is not None:  # multi-start: a heading excursion before the switch
+            return th0 + swing * math.sin(0.5 * math.pi * min(tau, 1.0))
+        if seg1:
+            if self.g.parking_type is ParkingType.PARALLEL and first:
+                return tth + 0.7 * math.sin(math.pi * tau) + psi * tau  # the S-curve's swing
+            if first:
+                return th0 + (tth - line.psi - th0) * tau  # toward the switch heading
+            return th0
+        return tth + psi * (1 - tau) if first and line.fixed else tth
