@@ -32,7 +32,7 @@ def _env():
 
         import mirrorpark_env  # noqa: F401
 
-        _ENV = gym.make("MirrorPark-v0").unwrapped
+        _ENV = gym.make("MirrorPark-v0")  # with its TimeLimit: episodes end at 180 s
     return _ENV
 
 

@@ -31,5 +31,7 @@ __all__ = [
     "to_action",
 ]
 
+MAX_EPISODE_STEPS = 1800  # 180 s, the ISO time limit, at the default 0.1 s control step
+
 if "MirrorPark-v0" not in registry:
-    register(id="MirrorPark-v0", entry_point="mirrorpark_env.env:MirrorParkEnv")
+    register(id="MirrorPark-v0", entry_point="mirrorpark_env.env:MirrorParkEnv", max_episode_steps=MAX_EPISODE_STEPS)

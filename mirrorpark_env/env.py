@@ -1,25 +1,6 @@
-"""``MirrorPark-v0``: a goal-conditioned parking environment on highway-env.
+"""``MirrorPark-v0``: parallel, reverse and angle parking as a goal-conditioned Gymnasium env.
 
-Action: ``[accel, steer]`` in [-1, 1]^2. Acceleration maps piecewise-linearly onto
-[a_min, a_max] = [-5, 3] m/s^2 with 0 -> 0; steering linearly onto +-0.6 rad (see
-``vehicle.to_action`` / ``from_action``). A NaN or infinite action raises ``ValueError``.
-
-Observation (``Dict``, usable with stable-baselines3's HER):
-- ``observation`` (13,): x/10, y/10, cos(theta), sin(theta), v/v_max, a/|a_min|,
-  delta/max_steer, RW/10, SL/10, SW/10, one-hot parking type. Together with the type the
-  three sizes fix all obstacles, so the vector is a sufficient description of the scene.
-- ``achieved_goal`` / ``desired_goal`` (4,): x/10, y/10, cos(theta), sin(theta) of the
-  rear axle now / at the target.
-
-Reward per step (``compute_reward``, vectorised for HER):
-``-(d_pos + w_h * |d_theta|) / distance_scale + success_bonus * reached +
-collision_penalty * collision``, where ``reached`` is the goal pose within 0.15 m and 3 deg.
-The episode's verdict, ``info["is_success"]``, is the ISO check of ``criteria.py``.
-
-Episodes end (terminated) on ISO success, collision or leaving the scene, and are
-truncated at the 180 s limit. Planners get the scenario's geometry once, in the reset
-``info`` (``info["geometry"]``), and the measured vehicle state every step
-(``info["vehicle_state"]``); they never read the simulator.
+The class docstring of ``MirrorParkEnv`` is the environment's specification.
 """
 
 from __future__ import annotations
@@ -30,12 +11,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from highway_env.envs.common.abstract import AbstractEnv
 
 from .config import EnvConfig, default_env, merge
 from .criteria import SuccessCriteria
 from .grid import TYPES, default_grid_cases
-from .rendering import Scene, make_viewer, prepare_headless
+from .rendering import Renderer
 from .scenario import Scenario, ScenarioGeometry
 from .vehicle import TruthModel, VehicleParams, VehicleState, from_action
 
@@ -43,15 +23,61 @@ POS_SCALE = 10.0  # [m] scale of positions in observations and goals
 V_EPS = 0.01  # [m/s] speeds below this count as standing when counting direction switches
 
 
-class MirrorParkEnv(AbstractEnv):
-    """Parallel, reverse and angle parking with the paper's car and ISO verdicts."""
+class MirrorParkEnv(gym.Env):
+    """Parallel, reverse and angle parking with the paper's car and ISO verdicts.
+
+    ## Description
+    A scene of Table III (road width, slot size, start heading and distance) is built
+    with the slot on the -Y side of a road along +X. The car starts just past the slot;
+    the task is the target pose inside it, judged by the ISO criteria
+    (``criteria.SuccessCriteria``). The truth model is a rear-axle kinematic bicycle with
+    first-order lags on acceleration and steering (``vehicle.TruthModel``); collisions are
+    exact footprint-polygon tests on every 0.01 s sub-step.
+
+    ## Action Space
+    ``Box(-1, 1, (2,))``: ``[accel, steer]``. Acceleration maps piecewise-linearly onto
+    [a_min, a_max] = [-5, 3] m/s^2 with 0 -> 0; steering linearly onto +-0.6 rad
+    (``vehicle.to_action`` / ``from_action``). A NaN or infinite action raises ``ValueError``.
+
+    ## Observation Space
+    ``Dict`` (usable with stable-baselines3's HER):
+    - ``observation`` (13,): x/10, y/10, cos(theta), sin(theta), v/v_max, a/|a_min|,
+      delta/max_steer, RW/10, SL/10, SW/10, one-hot parking type. With the type, the
+      three sizes fix all obstacles: the vector describes the scene completely.
+    - ``achieved_goal`` / ``desired_goal`` (4,): x/10, y/10, cos(theta), sin(theta) of
+      the rear axle now / at the target.
+
+    ## Rewards
+    ``-(d_pos + w_h * |d_theta|) / distance_scale + success_bonus * reached +
+    collision_penalty * collision`` per step (``compute_reward``, vectorised for HER),
+    where ``reached`` is the goal pose within 0.15 m and 3 deg. The episode's verdict is
+    ``info["is_success"]``, the ISO check.
+
+    ## Starting State
+    Standing (v = a = delta = 0) at the scenario's start pose: a random Table III case of
+    the configured parking types, or ``options={"scenario": Scenario | case id}``.
+
+    ## Episode End
+    Terminated on ISO success, collision or leaving the scene; truncated after
+    ``max_episode_steps`` = 1800 steps (180 s at the default 0.1 s step, the ISO time
+    limit; declared in the registration: pass ``max_episode_steps`` to ``gym.make`` with
+    another ``dt``).
+
+    ## Arguments
+    ``gym.make("MirrorPark-v0", config={...}, render_mode=None | "rgb_array" | "human")``;
+    ``config`` overrides ``configs/env.yaml`` and ``configs/vehicle.yaml`` (``EnvConfig``);
+    a bad value is rejected naming the field and its allowed range.
+
+    ## Info
+    Planners get the scene's geometry once, in the reset info (``info["geometry"]``), and
+    the measured vehicle state every step (``info["vehicle_state"]``); they never read
+    the simulator. Also: ``is_success``, ``collision``, ``failed_criterion``, ``margins``,
+    ``heading_error``, ``direction_switches``, ``parking_time``, ``path_length``.
+    """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
 
     def __init__(self, config: dict[str, Any] | EnvConfig | None = None, render_mode: str | None = None):
-        # highway-env's AbstractEnv.__init__ builds its own vehicle dynamics and spaces;
-        # this env brings its own truth model, so only gym.Env's constructor runs.
-        gym.Env.__init__(self)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode: must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"
@@ -62,28 +88,7 @@ class MirrorParkEnv(AbstractEnv):
         self.params = VehicleParams.from_config(self.cfg.vehicle)
         self.model = TruthModel(self.params, self.cfg.dt, self.cfg.substep)
         self.render_mode = render_mode
-        prepare_headless(render_mode)
-        r = self.cfg.render
-        # Keys read by highway-env's EnvViewer.
-        self.config = {
-            "screen_width": r.screen_width,
-            "screen_height": r.screen_height,
-            "scaling": r.scaling,
-            "centering_position": [0.5, 0.5],
-            "offscreen_rendering": render_mode != "human",
-            "render_agent": True,
-            "real_time_rendering": False,
-            "simulation_frequency": round(1 / self.cfg.dt),
-            "policy_frequency": round(1 / self.cfg.dt),
-            "show_trajectories": False,
-            "manual_control": False,
-        }
-        self.viewer = None
-        self._record_video_wrapper = None
-        self.enable_auto_render = False
-        self.road = None
-        self.controlled_vehicles = []
-        self.scene: Scene | None = None
+        self._renderer = Renderer(self.cfg.render, render_mode, self.cfg.dt) if render_mode is not None else None
         self.time = 0.0
         self.steps = 0
         self.done = False
@@ -103,7 +108,7 @@ class MirrorParkEnv(AbstractEnv):
 
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        gym.Env.reset(self, seed=seed)
+        super().reset(seed=seed)
         options = options or {}
         unknown = set(options) - {"scenario"}
         if unknown:
@@ -130,11 +135,8 @@ class MirrorParkEnv(AbstractEnv):
         )
         tx, ty, tth = g.target
         self._desired = np.array([tx / POS_SCALE, ty / POS_SCALE, math.cos(tth), math.sin(tth)], dtype=np.float32)
-        self.scene = Scene(g, self.np_random) if self.render_mode is not None else None
-        if self.scene is not None:
-            self.road = self.scene.road
-            self.controlled_vehicles = [self.scene.ego]
-            self.scene.update(s.x, s.y, s.theta, 0.0)
+        if self._renderer is not None:
+            self._renderer.reset(g, s.x, s.y, s.theta)
         obs = self._obs()
         info = self._info(False)
         info.update(scenario=scenario, case_id=scenario.case_id, geometry=g)
@@ -178,11 +180,11 @@ class MirrorParkEnv(AbstractEnv):
         obs = self._obs()
         info = self._info(out)
         terminated = bool(info["is_success"] or self.collided or out)
-        truncated = (not terminated) and self.time >= self.cfg.criteria.time_limit_s - 1e-9
-        self.done = terminated or truncated
+        truncated = False  # the time limit is the registration's max_episode_steps (TimeLimit)
+        self.done = terminated
         reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], info))
-        if self.scene is not None:
-            self.scene.update(x, y, th, self.state[3])
+        if self._renderer is not None:
+            self._renderer.update(x, y, th, self.state[3])
         if self.render_mode == "human":
             self.render()
         return obs, reward, terminated, truncated, info
@@ -264,16 +266,13 @@ class MirrorParkEnv(AbstractEnv):
         if self.render_mode is None:
             gym.logger.warn('MirrorPark-v0: no render_mode; use gym.make("MirrorPark-v0", render_mode="rgb_array")')
             return None
-        if self.scene is None:
+        if self.geometry is None:
             raise RuntimeError("MirrorPark-v0: call reset() before render()")
-        if self.viewer is None:
-            self.viewer = make_viewer(self)
-        self.viewer.display()
-        if not self.viewer.offscreen:
-            self.viewer.handle_events()
-        if self.render_mode == "rgb_array":
-            return self.viewer.get_image()
-        return None
+        return self._renderer.render()
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
 
 
 def _collisions(info, shape) -> np.ndarray:

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from .env import MirrorParkEnv
+    from .config import RenderConfig
     from .scenario import ScenarioGeometry
 
 
@@ -77,7 +77,70 @@ class Scene:
         self.path.append((x, -y))
 
 
-def make_viewer(env: MirrorParkEnv):
+class Renderer:
+    """Draws one environment's scene with highway-env's viewer; owned by the env (composition).
+
+    highway-env's ``EnvViewer`` reads a few attributes of the object it draws (``config``,
+    ``road``, ``action_type``, ``observation_type``, ``close``): this object provides them,
+    so the env itself stays a plain ``gymnasium.Env``. ``"human"`` opens a window (any SDL
+    video driver; with ``SDL_VIDEODRIVER=dummy`` it draws nothing), ``"rgb_array"`` draws
+    offscreen.
+    """
+
+    action_type = None  # no keyboard control of the car
+    observation_type = None  # nothing observation-specific to draw
+
+    def __init__(self, render: RenderConfig, mode: str, dt: float):
+        prepare_headless(mode)
+        self.mode = mode
+        # Keys read by highway-env's EnvViewer.
+        self.config = {
+            "screen_width": render.screen_width,
+            "screen_height": render.screen_height,
+            "scaling": render.scaling,
+            "centering_position": [0.5, 0.5],
+            "offscreen_rendering": mode != "human",
+            "render_agent": True,
+            "real_time_rendering": False,
+            "simulation_frequency": round(1 / dt),
+            "policy_frequency": round(1 / dt),
+            "show_trajectories": False,
+            "manual_control": False,
+        }
+        self.geometry: ScenarioGeometry | None = None
+        self.scene: Scene | None = None
+        self.road = None
+        self.viewer = None
+
+    def reset(self, geometry: ScenarioGeometry, x: float, y: float, theta: float) -> None:
+        self.geometry = geometry
+        self.scene = Scene(geometry)
+        self.road = self.scene.road
+        self.scene.update(x, y, theta, 0.0)
+        if self.mode == "human":
+            self.render()
+
+    def update(self, x: float, y: float, theta: float, v: float) -> None:
+        self.scene.update(x, y, theta, v)
+        if self.mode == "human":
+            self.render()
+
+    def render(self) -> np.ndarray | None:
+        """The frame (``rgb_array``), or None after drawing it in the window (``human``)."""
+        if self.viewer is None:
+            self.viewer = make_viewer(self)
+        self.viewer.display()
+        if not self.viewer.offscreen:
+            self.viewer.handle_events()
+        return self.viewer.get_image() if self.mode == "rgb_array" else None
+
+    def close(self) -> None:
+        if self.viewer is not None:
+            self.viewer.close()
+            self.viewer = None
+
+
+def make_viewer(renderer: Renderer):
     """highway-env's ``EnvViewer`` drawing the obstacles, the slot, the target and the car."""
     import pygame
     from highway_env.envs.common.graphics import EnvViewer
@@ -117,4 +180,4 @@ def make_viewer(env: MirrorParkEnv):
                 self.screen.blit(surf, (0, 0))
                 pygame.display.flip()
 
-    return MirrorParkViewer(env)
+    return MirrorParkViewer(renderer)

@@ -22,9 +22,27 @@ def act(a: float, d: float) -> np.ndarray:
     return to_action(P, a, d)
 
 
-def test_gymnasium_check_env():
-    env = make()
-    gym_check_env(env.unwrapped, skip_render_check=True)
+def test_gymnasium_check_env(monkeypatch):
+    """Gymnasium's checker, render modes included: it makes and resets a "human" env too
+    (on SDL's dummy video driver, the virtual display of a machine without a screen)."""
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    env = make(render_mode="rgb_array")
+    gym_check_env(env.unwrapped)
+
+
+def test_human_render_mode_resets_steps_and_closes(monkeypatch):
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    env = make(render_mode="human")
+    env.reset(options={"scenario": REV})
+    for _ in range(3):
+        env.step(act(1.0, 0.2))
+    assert env.render() is None
+    env.close()
+    env.close()  # closing twice is allowed
+
+
+def test_time_limit_is_declared_in_the_registration():
+    assert gym.spec("MirrorPark-v0").max_episode_steps == 1800
 
 
 def test_stable_baselines3_check_env(require_module):
