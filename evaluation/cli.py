@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-PARKING_TYPES = ["parallel", "reverse", "angle"]  # choices of every parking-type option
+from mirrorpark_env.config import PARKING_TYPES
 
 
 def cmd_grid(args: argparse.Namespace) -> int:
@@ -147,8 +147,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument(
         "--types",
         nargs="+",
-        default=PARKING_TYPES,
-        choices=PARKING_TYPES,
+        default=list(PARKING_TYPES),
+        choices=list(PARKING_TYPES),
         help="parking types the mirror planner drives",
     )
     d.set_defaults(func=cmd_demo)
@@ -165,7 +165,7 @@ def build_parser() -> argparse.ArgumentParser:
             help="a JSON or CSV file of cases (fields: parking_type, road_width, "
             "slot_length, slot_width, theta0_deg, y0); overrides --sample",
         )
-        p.add_argument("--types", nargs="+", choices=PARKING_TYPES, help="only these parking types")
+        p.add_argument("--types", nargs="+", choices=list(PARKING_TYPES), help="only these parking types")
         p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -208,7 +208,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument(
         "--parking-type",
         nargs="+",
-        choices=PARKING_TYPES,
+        choices=list(PARKING_TYPES),
         default=None,
         dest="parking_types",
         help="train on these types (default: all three)",

@@ -16,7 +16,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-TYPES = ("parallel", "reverse", "angle")
+from mirrorpark_env.config import PARKING_TYPES
+
+TYPES = PARKING_TYPES
 CELL = ("parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "y0")
 
 # The paper's headline figures (abstract and section III.B).

@@ -8,14 +8,34 @@ and the value given, e.g. ``vehicle.yaml: wheelbase: Input should be greater tha
 from __future__ import annotations
 
 import math
+from enum import Enum
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal, TypeVar
+from typing import Any, Literal, TypeVar, get_args
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-ParkingTypeName = Literal["parallel", "reverse", "angle"]
+
+class ParkingType(str, Enum):
+    PARALLEL = "parallel"
+    REVERSE = "reverse"
+    ANGLE = "angle"
+
+    @classmethod
+    def parse(cls, value: object) -> ParkingType:
+        if isinstance(value, ParkingType):
+            return value
+        try:
+            return cls(str(value).lower())
+        except ValueError:
+            allowed = ", ".join(t.value for t in cls)
+            raise ValueError(f"parking_type: unknown {value!r}; allowed: {allowed}") from None
+
+
+PARKING_TYPES: tuple[str, ...] = tuple(t.value for t in ParkingType)  # the one list, in this order
+ParkingTypeName = Literal["parallel", "reverse", "angle"]  # for validation; must equal PARKING_TYPES
+assert get_args(ParkingTypeName) == PARKING_TYPES
 
 M = TypeVar("M", bound=BaseModel)
 
@@ -27,19 +47,20 @@ class StrictModel(BaseModel):
 
 
 class VehicleConfig(StrictModel):
-    """The vehicle of Table II (SI units)."""
+    """A vehicle (SI units): types and ranges only; the values of Table II are in
+    ``configs/vehicle.yaml``, their one source."""
 
-    wheelbase: float = Field(2.5, gt=0, le=10)
-    rear_overhang: float = Field(0.71, ge=0, le=5)
-    front_length: float = Field(3.11, gt=0, le=10)
-    width: float = Field(1.67, gt=0, le=5)
-    max_steer_rad: float = Field(0.6, gt=0, lt=math.pi / 2)
-    accel_min: float = Field(-5.0, lt=0, ge=-20)
-    accel_max: float = Field(3.0, gt=0, le=20)
-    speed_min: float = Field(-3.0, lt=0, ge=-30)
-    speed_max: float = Field(3.0, gt=0, le=30)
-    tau_accel_s: float = Field(0.3, gt=0, le=5)
-    tau_steer_s: float = Field(0.1, gt=0, le=5)
+    wheelbase: float = Field(gt=0, le=10)
+    rear_overhang: float = Field(ge=0, le=5)
+    front_length: float = Field(gt=0, le=10)
+    width: float = Field(gt=0, le=5)
+    max_steer_rad: float = Field(gt=0, lt=math.pi / 2)
+    accel_min: float = Field(lt=0, ge=-20)
+    accel_max: float = Field(gt=0, le=20)
+    speed_min: float = Field(lt=0, ge=-30)
+    speed_max: float = Field(gt=0, le=30)
+    tau_accel_s: float = Field(gt=0, le=5)
+    tau_steer_s: float = Field(gt=0, le=5)
 
     @model_validator(mode="after")
     def _front_beyond_axle(self) -> VehicleConfig:
@@ -122,10 +143,10 @@ class EnvConfig(StrictModel):
     substep: float = Field(0.01, gt=0, le=0.02)
     criteria: CriteriaConfig = CriteriaConfig()
     reward: RewardConfig = RewardConfig()
-    parking_types: list[ParkingTypeName] = Field(default_factory=lambda: ["parallel", "reverse", "angle"], min_length=1)
+    parking_types: list[ParkingTypeName] = Field(default_factory=lambda: list(PARKING_TYPES), min_length=1)
     scene_margin: float = Field(25.0, ge=5, le=200)
     render: RenderConfig = RenderConfig()
-    vehicle: VehicleConfig = VehicleConfig()
+    vehicle: VehicleConfig  # default_env() reads configs/vehicle.yaml
 
     @model_validator(mode="after")
     def _substeps_divide(self) -> EnvConfig:

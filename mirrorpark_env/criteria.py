@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .angles import wrap_angle
 from .config import CriteriaConfig
 from .scenario import ParkingType, ScenarioGeometry
 from .vehicle import CORNER_NAMES
@@ -118,7 +119,7 @@ class SuccessCriteria:
     ) -> Verdict:
         d = self._edge_distances_at(x, y, theta)
         margins = self._margins_from(d)
-        herr = math.remainder(theta - self.target_heading, 2 * math.pi)
+        herr = wrap_angle(theta - self.target_heading)
         inside = min(min(row) for row in d) >= -1e-12
         stopped = abs(v) < self.cfg.stop_speed
         lowest = min(margins.values())

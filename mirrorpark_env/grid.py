@@ -34,7 +34,7 @@ class Grid:
     @classmethod
     def from_config(cls, config: GridConfig | None = None, vehicle: VehicleParams | None = None) -> Grid:
         config = config or default_grid()
-        vehicle = vehicle or VehicleParams()
+        vehicle = vehicle or VehicleParams.table_ii()
         cols: dict[str, list[np.ndarray]] = {k: [] for k in ("type", *FACTORS)}
         thetas = np.array(config.theta0_deg.values())
         for ti, t in enumerate(TYPES):

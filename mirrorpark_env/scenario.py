@@ -19,32 +19,16 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
-from enum import Enum
 from functools import cached_property
 
 import numpy as np
 
+from .config import ParkingType
 from .geometry import ConvexSet, FootprintChecker, HalfPlane, inward_half_plane
 from .vehicle import VehicleParams, VehicleState, footprint
 
 SQRT2 = math.sqrt(2.0)
 DEPTH_BEYOND = 3.0  # [m] thickness of the regions behind the slot and beyond the road
-
-
-class ParkingType(str, Enum):
-    PARALLEL = "parallel"
-    REVERSE = "reverse"
-    ANGLE = "angle"
-
-    @classmethod
-    def parse(cls, value: object) -> ParkingType:
-        if isinstance(value, ParkingType):
-            return value
-        try:
-            return cls(str(value).lower())
-        except ValueError:
-            allowed = ", ".join(t.value for t in cls)
-            raise ValueError(f"parking_type: unknown {value!r}; allowed: {allowed}") from None
 
 
 def _finite(name: str, value: object) -> float:
@@ -143,7 +127,7 @@ class Scenario:
 
     def build(self, vehicle: VehicleParams | None = None, scene_margin: float = 25.0) -> ScenarioGeometry:
         """The scenario's geometry for ``vehicle``; raises ``ValueError`` if it cannot exist."""
-        return build_geometry(self, vehicle or VehicleParams(), scene_margin)
+        return build_geometry(self, vehicle or VehicleParams.table_ii(), scene_margin)
 
 
 _CASE_ID = re.compile(

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -24,17 +25,17 @@ CORNER_NAMES = ("front_left", "front_right", "rear_right", "rear_left")
 class VehicleParams:
     """Geometry and limits of the car (Table II); SI units, radians."""
 
-    wheelbase: float = 2.5
-    rear_overhang: float = 0.71
-    front_length: float = 3.11
-    width: float = 1.67
-    max_steer: float = 0.6
-    a_min: float = -5.0
-    a_max: float = 3.0
-    v_min: float = -3.0
-    v_max: float = 3.0
-    tau_a: float = 0.3
-    tau_delta: float = 0.1
+    wheelbase: float
+    rear_overhang: float
+    front_length: float
+    width: float
+    max_steer: float
+    a_min: float
+    a_max: float
+    v_min: float
+    v_max: float
+    tau_a: float
+    tau_delta: float
 
     @classmethod
     def from_config(cls, cfg: VehicleConfig) -> VehicleParams:
@@ -54,8 +55,8 @@ class VehicleParams:
 
     @classmethod
     def table_ii(cls) -> VehicleParams:
-        """The paper's car as shipped in ``configs/vehicle.yaml``."""
-        return cls.from_config(default_vehicle())
+        """The paper's car as shipped in ``configs/vehicle.yaml`` (read once)."""
+        return _table_ii()
 
     @property
     def length(self) -> float:
@@ -244,3 +245,8 @@ def from_action(params: VehicleParams, action) -> tuple[float, float]:
     ud = min(max(ud, -1.0), 1.0)
     a_cmd = ua * params.a_max if ua >= 0 else -ua * params.a_min
     return a_cmd, ud * params.max_steer
+
+
+@cache
+def _table_ii() -> VehicleParams:
+    return VehicleParams.from_config(default_vehicle())

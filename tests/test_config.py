@@ -11,7 +11,7 @@ from mirrorpark_env.vehicle import VehicleParams
 
 
 def test_shipped_configs_are_the_paper_values():
-    assert VehicleParams.from_config(default_env().vehicle) == VehicleParams()
+    assert VehicleParams.from_config(default_env().vehicle) == VehicleParams.table_ii()
     g = default_grid()
     assert g.types["parallel"].slot_length.values()[-1] == pytest.approx(7.32)
     assert g.types["reverse"].slot_width.values()[-1] == pytest.approx(3.27)

@@ -10,7 +10,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 import mirrorpark_env  # noqa: F401  (registers MirrorPark-v0)
 from mirrorpark_env import Scenario, VehicleParams, to_action
 
-P = VehicleParams()
+P = VehicleParams.table_ii()
 REV = Scenario.from_degrees("reverse", 5.0, 4.82, 2.3, 90, 1.0, start_x_offset=-1.15)
 
 

@@ -11,7 +11,7 @@ from shapely.geometry import Polygon
 from mirrorpark_env import Scenario, VehicleParams, footprint
 from mirrorpark_env.geometry import ConvexSet, FootprintChecker
 
-P = VehicleParams()
+P = VehicleParams.table_ii()
 SCENES = [
     Scenario.from_degrees("parallel", 3.5, 4.5, 2.5, 0, 1.2),
     Scenario.from_degrees("reverse", 5.0, 4.82, 2.0, 0, 2.0),

@@ -21,7 +21,7 @@ from planners.hybrid_astar.heuristic import GridDistance
 from planners.hybrid_astar.policy import HybridAStarPolicy
 from planners.hybrid_astar.search import HybridAStar, HybridAStarConfig
 
-P = VehicleParams()
+P = VehicleParams.table_ii()
 R = P.wheelbase / math.tan(P.max_steer)
 
 

@@ -28,7 +28,7 @@ from planners.mirror.plans import Candidate
 from planners.mirror.policy import MirrorPolicy
 from planners.mirror.solvers import INACTIVE, QP, BranchAndBound, Disjunction, Enumeration, PiqpQP
 
-P = VehicleParams()
+P = VehicleParams.table_ii()
 R_MIN = 2.5 / math.tan(0.6)  # 3.6542 m
 
 

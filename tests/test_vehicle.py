@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -9,7 +10,7 @@ import pytest
 
 from mirrorpark_env.vehicle import TruthModel, VehicleParams, footprint, from_action, to_action
 
-P = VehicleParams()
+P = VehicleParams.table_ii()
 
 
 def run(model: TruthModel, state, commands):
@@ -96,7 +97,7 @@ def test_vectorised_rollout_equals_chained_steps(substep, saturating):
 @pytest.mark.parametrize("lags", [False, True])
 def test_theorem_2_negated_commands_give_the_point_reflected_path(lags):
     """Eq. (7)-(9): same start, opposite speed, negated commands -> x, y negated, theta equal."""
-    params = P if lags else VehicleParams(tau_a=1e-9, tau_delta=1e-9)
+    params = P if lags else dataclasses.replace(P, tau_a=1e-9, tau_delta=1e-9)
     m = TruthModel(params, 0.1, 0.01)
     rng = np.random.default_rng(0)
     # Within the symmetric part of the bounds (|a| <= 3): a negated command is not clipped.

@@ -22,6 +22,7 @@ import math
 import numpy as np
 from pydantic import Field
 
+from mirrorpark_env.angles import wrap_angle
 from mirrorpark_env.config import StrictModel
 from mirrorpark_env.vehicle import VehicleParams, VehicleState
 
@@ -102,7 +103,7 @@ class PathTracker:
         dx, dy = x - xr, y - yr
         along = gear * (c * dx + s * dy)  # progress past sample j in the driving direction
         self.e_y = -s * dx + c * dy
-        self.e_theta = math.remainder(theta - thr, 2 * math.pi)
+        self.e_theta = wrap_angle(theta - thr)
         if abs(self.e_y) > cfg.max_lateral_error or abs(self.e_theta) > self._max_heading_error:
             self.drifted = True
         s_now = self._s[j] + along

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from mirrorpark_env.angles import wrap_angle
 from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import VehicleState, to_action
 
@@ -128,4 +129,4 @@ class MirrorPolicy(Policy):
 
 def _same_pose(a: tuple[float, float, float], b: tuple[float, float, float]) -> bool:
     """Within 1 cm and 0.01 rad."""
-    return math.hypot(a[0] - b[0], a[1] - b[1]) < 0.01 and abs(math.remainder(a[2] - b[2], math.tau)) < 0.01
+    return math.hypot(a[0] - b[0], a[1] - b[1]) < 0.01 and abs(wrap_angle(a[2] - b[2])) < 0.01

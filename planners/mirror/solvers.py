@@ -20,7 +20,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import piqp
@@ -65,8 +65,8 @@ class MIQPResult:
     status: str  # "solved", "infeasible", "node_limit", "time_limit"
     nodes: int
     qp_solves: int
-    assignment: tuple[int, ...] = ()  # chosen row per disjunction (-1: satisfied unforced)
-    stats: dict = field(default_factory=dict)
+    assignment: tuple[int, ...]  # chosen row per disjunction (-1: satisfied unforced)
+    solve_time_s: float
 
 
 class CscPattern:
@@ -286,7 +286,7 @@ class BranchAndBound:
             nodes,
             solves,
             best_assign,
-            {"time_s": time.perf_counter() - t0},
+            time.perf_counter() - t0,
         )
 
 
@@ -299,6 +299,7 @@ class Enumeration:
     def solve(
         self, qp: QP, disjunctions: list[Disjunction], active_bounds: np.ndarray, preferred: list[int] | None = None
     ) -> MIQPResult:
+        t0 = time.perf_counter()
         base_l = qp.h_l.copy()
         best_x, best_obj, best_assign, solves = None, math.inf, (), 0
         for assign in itertools.product(*(d.rows for d in disjunctions)):
@@ -311,5 +312,11 @@ class Enumeration:
                 best_x, best_obj, best_assign = res.x, res.obj, assign
         qp.h_l = base_l
         return MIQPResult(
-            best_x, best_obj, "solved" if best_x is not None else "infeasible", solves, solves, best_assign
+            best_x,
+            best_obj,
+            "solved" if best_x is not None else "infeasible",
+            solves,
+            solves,
+            best_assign,
+            time.perf_counter() - t0,
         )

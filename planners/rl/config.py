@@ -7,7 +7,7 @@ from typing import Any, Literal
 
 from pydantic import Field
 
-from mirrorpark_env.config import ParkingTypeName, StrictModel, default_config_path, read_yaml, validate
+from mirrorpark_env.config import PARKING_TYPES, ParkingTypeName, StrictModel, default_config_path, read_yaml, validate
 
 
 class HerConfig(StrictModel):
@@ -43,7 +43,7 @@ class RLConfig(StrictModel):
     curriculum: CurriculumConfig = CurriculumConfig()
     eval: EvalConfig = EvalConfig()
     checkpoint_every_steps: int = Field(50_000, ge=1)
-    parking_types: list[ParkingTypeName] = Field(default_factory=lambda: ["parallel", "reverse", "angle"], min_length=1)
+    parking_types: list[ParkingTypeName] = Field(default_factory=lambda: list(PARKING_TYPES), min_length=1)
     device: str = "auto"
     torch_threads: int = Field(1, ge=1, le=256)
     seed: int = 0
