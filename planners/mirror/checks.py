@@ -11,6 +11,7 @@ from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import TruthModel
 
 from ..common.clearance import gaps, required_gap
+from ..common.tracker import hold_accel
 from .config import MirrorPlannerConfig
 from .frames import XI_A, XI_D, XI_V, real_commands
 from .mirror_line import MirrorLine
@@ -131,7 +132,7 @@ class Checks:
                 if i < cut:
                     a, d = u_real[i]
                 else:  # brake to a stop, wheels held
-                    a = max(p.a_min, min(p.a_max, -s[XI_V] / 0.3 - s[XI_A] if abs(s[XI_V]) > 1e-3 else -s[XI_A]))
+                    a = hold_accel(p, s[XI_V], s[XI_A])
                     d = s[XI_D]
                 sub = self.truth.step(s, a, d)
                 poses.append(sub[:, :3])

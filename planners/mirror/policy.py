@@ -20,6 +20,7 @@ from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import VehicleState, to_action
 
 from ..base import Policy
+from ..common.tracker import hold_accel
 from .config import MirrorPlannerConfig, MirrorPolicyConfig
 from .planner import MirrorPlanner
 from .plans import Plan
@@ -119,8 +120,7 @@ class MirrorPolicy(Policy):
         self.k = 0
 
     def _brake(self, s: VehicleState) -> np.ndarray:
-        a = -s.v / 0.3 if abs(s.v) > 1e-3 else -s.a
-        return to_action(self.params, max(self.params.a_min, min(self.params.a_max, a)), s.delta)
+        return to_action(self.params, hold_accel(self.params, s.v, s.a), s.delta)
 
     @property
     def status(self) -> str:
