@@ -1,4 +1,4 @@
-"""Scores from a results table (DESIGN.md section 6).
+"""Scores from a results table (docs/design.md, "Evaluation quantities").
 
 - success rate per parking type and over all cases (error rows count as failures);
 - completion: mean direction switches and parking time over successful episodes;

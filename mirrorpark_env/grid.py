@@ -1,7 +1,7 @@
 """The paper's Table III scenario grid, with stable case ids, filters and samples.
 
 A case "can be generated" when all four corners of the start footprint lie in the road
-strip 0 <= Y <= RW (DESIGN.md section 7). That rule gives 12,420 parallel, 46,629
+strip 0 <= Y <= RW (docs/design.md). That rule gives 12,420 parallel, 46,629
 reverse and 11,385 angle cases (70,434 in all); the paper reports 12,995 parallel cases
 (71,009 in all) from a placement rule it does not state. See docs/scenarios.md.
 """

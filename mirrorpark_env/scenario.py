@@ -1,6 +1,6 @@
 """Parking scenarios (Table III factors) and the geometry they build.
 
-World frame (DESIGN.md section 2): the road runs along +X; the slot lies on the -Y side
+World frame (docs/design.md): the road runs along +X; the slot lies on the -Y side
 of the slot line Y = 0; the road strip is 0 <= Y <= RW. The slot's entrance on Y = 0
 runs from X = 0 to X = E (E = SL for parallel, SW for reverse, SW * sqrt(2) for the 45
 deg angle slot). The car starts with its rear axle at (E + start_x_offset, y0), heading
@@ -182,7 +182,7 @@ def _rect(x0: float, x1: float, y0: float, y1: float) -> np.ndarray:
 
 
 def start_fits_road(vehicle: VehicleParams, theta0, y0, road_width, tol: float = 1e-9) -> np.ndarray:
-    """DESIGN.md section 7: all four start corners lie in the road strip 0 <= Y <= RW."""
+    """docs/design.md, "The grid": all four start corners lie in the road strip 0 <= Y <= RW."""
     ys = footprint(vehicle, np.zeros_like(np.asarray(y0, float)), y0, theta0)[..., 1]
     return (ys.min(axis=-1) >= -tol) & (ys.max(axis=-1) <= np.asarray(road_width) + tol)
 

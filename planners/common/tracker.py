@@ -2,7 +2,7 @@
 lateral law, within the car's limits.
 
 Each gear segment is driven in three phases: steer while standing to the segment's first
-curvature (the real car re-steers standing, DESIGN.md section 5), drive, and stop at
+curvature (the real car re-steers standing, docs/design.md), drive, and stop at
 its end. Steering is the path's curvature (looked ahead by the steering lag) plus
 feedback on the rear axle's lateral and heading error, with gains that give the error a
 critically damped response over ``preview`` metres, in either gear:

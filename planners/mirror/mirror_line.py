@@ -1,4 +1,4 @@
-"""Mirror line (paper section II.B) and mirrored target (DESIGN.md section 4).
+"""Mirror line (paper section II.B) and mirrored target (docs/design.md).
 
 The mirror line is parallel to the slot's axis (the target heading), on the right-hand
 side of the parked car at distance ``l_mi`` from the target's axis line:

@@ -3,7 +3,7 @@
 State [x, y, theta, v, a, delta] (the environment's order; the paper writes
 [x, v, a, y, theta, delta]), control [a_cmd, delta_cmd]. The nonlinear step is the truth
 model's own discretisation (exact lags, exact arcs) with fewer sub-steps, so plans and
-the environment agree to millimetres. Two linearisations (DESIGN.md section 5):
+the environment agree to millimetres. Two linearisations (docs/design.md):
 
 - ``paper_linearisation``: Eqs. (22)-(29): heading linearised about a fixed angle,
   nominal speed in the heading equation, forward-Euler lags;
