@@ -349,3 +349,45 @@ def test_a_car_at_the_kerb_may_leave_it_closer_than_the_gap():
     near = np.hypot(poses[:, 0] - poses[0, 0], poses[:, 1] - poses[0, 1]) < search.cfg.start_relief
     assert _shapely_gap(g, poses[1:][near[1:]]) >= search.cfg.start_gap - 1e-6
     assert _shapely_gap(g, poses[~near]) >= search.cfg.gap - 1e-6
+
+
+def test_obstacle_rows_are_one_row_per_alternative_exact_at_the_reference():
+    """Eq. (40)'s rows: every alternative of a disjunction is a row of its own, and at the
+    pose they are linearised about each row's value less its bound is that face's exact
+    clearance less the margin (points: n.(P + R c) - b; obstacle vertices: n_car.(q - P) - off)."""
+    from planners.mirror.layout import ix
+    from planners.mirror.obstacles import Rows
+
+    g = Scenario.from_degrees("reverse", 6.0, 4.82, 2.3, 0, 2.5).build()
+    pl = MirrorPlanner(g)
+    obs = pl.qp.obstacles
+    tx, ty, tth = g.target
+    pose = np.array([tx + 0.4, ty + 1.0, tth + 0.2, 0.0, 0.0, 0.0])  # in the slot's mouth, near a side
+    real = np.repeat(pose[None], 2 * pl.N + 1, axis=0)
+    i = 10
+    k = int(np.argmax(g.checker.penetration(pose[:1], pose[1:2], pose[2:3])[0]))  # the nearest obstacle
+    rows = Rows()
+    rows.h_l.append(0.0), rows.h_u.append(np.inf), rows.active.append(0.0)  # a row 0, as the mirror line's
+    obs.add(rows, Candidate(1, None), real, {(i, k): None})
+    assert rows.disj, "the nearby obstacle gives disjunctions"
+    n_rows = len(rows.h_l)
+    assert len(rows.h_u) == len(rows.active) == n_rows
+    for d in rows.disj:
+        assert len(set(d.rows)) == len(d.rows) and all(1 <= r < n_rows for r in d.rows)
+    G = sp.csr_matrix((rows.g_vals, (rows.g_rows, rows.g_cols)), shape=(n_rows, ix(pl.N, 5) + 1))
+    z = np.zeros(G.shape[1])
+    z[[ix(i, 0), ix(i, 1), ix(i, 2)]] = pose[:3]
+    value = G @ z - np.array(rows.active)
+    P0, th = pose[:2], pose[2]
+    R = np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
+    expected = []
+    for c in obs.points:
+        q = P0 + R @ c
+        slack = [float(n @ q) - b for n, b in obs.faces[k]]
+        if max(slack) <= 1.0:
+            expected += [s_ - obs.margin for s_ in slack]
+    centre = P0 + P.center_offset * np.array([math.cos(th), math.sin(th)])
+    for q in obs.vertices[k]:
+        if np.hypot(*(q - centre)) <= 0.5 * P.length + 1.5:
+            expected += [float((R @ nb) @ (q - P0)) - off - obs.margin for nb, off in obs.car_faces]
+    np.testing.assert_allclose(value[1:], expected, atol=1e-9)

@@ -38,7 +38,7 @@ class Rows:
 
     def add_row(self, i: int, iS: int, coef_p, coef_th: float, sign: float, twice: float) -> int:
         """A row on the real pose at step ``i`` (real p = sign * p_i + twice * S); its index."""
-        r = len(self.h_l)  # BUG kept for the refactor's identity check: alternatives share one row
+        r = len(self.h_u)  # h_u grows per row at once, h_l only when the group is registered
         self.g_rows.extend([r, r, r])
         self.g_cols.extend([ix(i, XI_X), ix(i, XI_Y), ix(i, XI_TH)])
         self.g_vals.extend([sign * coef_p[0], sign * coef_p[1], coef_th])
