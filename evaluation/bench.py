@@ -12,6 +12,8 @@ import time
 
 import numpy as np
 
+from mirrorpark_env.scenario import Scenario
+
 
 def env_steps_per_second(steps: int = 5000, repeats: int = 5) -> dict:
     """MirrorPark-v0 stepping without rendering, seeded random actions, resets included."""
@@ -43,7 +45,7 @@ def planning_times(planners: list[str], case_ids: list[str]) -> dict:
     for p in planners:
         times, wall, setup, ok = [], [], [], 0
         for cid in case_ids:
-            row = run_case(p, cid)
+            row = run_case(p, Scenario.from_case_id(cid))  # grid ids: exact
             times += row.get("plan_times_ms") or []
             wall.append(row["episode_wall_s"])
             setup.append(row.get("setup_ms", 0.0))

@@ -30,9 +30,11 @@ def load_case_file(path: str | Path) -> list[Scenario]:
     if p.suffix.lower() not in (".json", ".csv"):
         raise ValueError(f"{p}: case file must end in .json or .csv")
     try:
-        text = p.read_text()
+        text = p.read_bytes().decode("utf-8")
     except OSError as err:
         raise ValueError(f"{p}: cannot read case file ({err.strerror})") from None
+    except UnicodeDecodeError as err:
+        raise ValueError(f"{p}: not UTF-8 text (byte {err.start})") from None
     if p.suffix.lower() == ".json":
         try:
             rows = json.loads(text)
@@ -49,6 +51,11 @@ def load_case_file(path: str | Path) -> list[Scenario]:
         raise ValueError(f"{p}: no cases")
     out = []
     for n, row in enumerate(rows, 1):
+        if None in row:  # csv.DictReader: more values than the header names
+            raise ValueError(f"{p}: case {n}: more values than the header names")
+        bad = [k for k, v in row.items() if isinstance(v, bool) or isinstance(v, (list, dict))]
+        if bad:
+            raise ValueError(f"{p}: case {n}: {bad[0]}: expected a number or a name, got {row[bad[0]]!r}")
         missing = [f for f in CASE_FIELDS if f not in row or row[f] in ("", None)]
         if missing:
             raise ValueError(f"{p}: case {n}: missing field(s) {', '.join(missing)}")

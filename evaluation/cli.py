@@ -40,11 +40,22 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cases(args: argparse.Namespace):
+    """The cases to run: a case file's (filtered by --types) or a grid sample's; a file's
+    repeats are reported and run once."""
     from .cases import from_sample, load_case_file
+    from .runner import unique
 
-    if args.cases:
-        return load_case_file(args.cases)
-    return from_sample(args.sample, types=args.types)
+    if not args.cases:
+        return from_sample(args.sample, types=args.types)
+    cases = load_case_file(args.cases)
+    if args.types:
+        cases = [sc for sc in cases if sc.parking_type.value in args.types]
+        if not cases:
+            raise ValueError(f"{args.cases}: no case of type {', '.join(args.types)}")
+    cases, repeats = unique(cases)
+    if repeats:
+        print(f"mirrorpark: note: {args.cases}: {repeats} repeated case(s) run once", file=sys.stderr)
+    return cases
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
@@ -130,6 +141,16 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _positive_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {n}")
+    return n
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="mirrorpark", description="MirrorPark: parking planners scored side by side.")
     sub = ap.add_subparsers(dest="command", required=True)
@@ -166,7 +187,7 @@ def build_parser() -> argparse.ArgumentParser:
             "slot_length, slot_width, theta0_deg, y0); overrides --sample",
         )
         p.add_argument("--types", nargs="+", choices=list(PARKING_TYPES), help="only these parking types")
-        p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+        p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
 
     e = sub.add_parser("evaluate", help="run a planner over grid cases; resumable")
@@ -245,17 +266,35 @@ def cmd_train_rl(args: argparse.Namespace) -> int:
     return 0
 
 
+def _one_line_warnings() -> None:
+    """Warnings (a damaged results folder, say) as one line each, without source code."""
+    import warnings
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"mirrorpark: warning: {message}", file=sys.stderr)
+
+    warnings.showwarning = show
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if getattr(args, "func", None) is cmd_evaluate and args.out is None:
         args.out = (
             f"results/{args.planner.replace(':', '_').replace('/', '_')}-{'cases' if args.cases else args.sample}"
         )
+    _one_line_warnings()
     try:
         return args.func(args)
     except ValueError as err:  # bad input: one clear line, no traceback
         print(f"mirrorpark: error: {err}", file=sys.stderr)
         return 2
+    except OSError as err:  # a path the user gave: missing, a file for a folder, not writable
+        where = f"{err.filename}: " if err.filename else ""
+        print(f"mirrorpark: error: {where}{err.strerror or err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt as err:  # Ctrl-C: what is stored, and how to resume
+        print(f"mirrorpark: interrupted{': ' + str(err) if str(err) else ''}", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

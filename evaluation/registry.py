@@ -44,6 +44,8 @@ def make_policy(name: str) -> Policy:
     ``rl:PATH`` loads the model file PATH, which unpickles code: name only files you trust.
     """
     if name.startswith("rl:"):
+        if not name[3:].strip():
+            raise ValueError("planner: 'rl:' needs a model file after it, e.g. rl:results/rl/model.zip")
         from planners.rl.policy import RLPolicy
 
         return RLPolicy(name[3:])

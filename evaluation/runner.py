@@ -37,20 +37,33 @@ def _env():
 
 
 def case_fields(sc: Scenario) -> dict[str, Any]:
+    """The case's own values, as run (the id is only its name)."""
     return {
         "case_id": sc.case_id,
         "parking_type": sc.parking_type.value,
         "road_width": sc.road_width,
         "slot_length": sc.slot_length,
         "slot_width": sc.slot_width,
-        "theta0_deg": round(sc.theta0_deg, 6),
+        "theta0_deg": round(sc.theta0_deg, 9),
         "y0": sc.y0,
-        "y1": round(sc.road_width - sc.y0, 6),  # distance from the rear axle to the road boundary
+        "y1": round(sc.road_width - sc.y0, 9),  # distance from the rear axle to the road boundary
+        "start_x_offset": sc.start_x_offset,
     }
 
 
-def run_case(planner: str, case_id: str) -> dict[str, Any]:
-    """One episode of ``planner`` on ``case_id``; never raises (errors become rows)."""
+def unique(scenarios: Iterable[Scenario]) -> tuple[list[Scenario], int]:
+    """The scenarios in order with repeats (same id) dropped, and how many were dropped."""
+    out, seen, n_in = [], set(), 0
+    for sc in scenarios:
+        n_in += 1
+        if sc.case_id not in seen:
+            seen.add(sc.case_id)
+            out.append(sc)
+    return out, n_in - len(out)
+
+
+def run_case(planner: str, sc: Scenario) -> dict[str, Any]:
+    """One episode of ``planner`` on scenario ``sc``; never raises (errors become rows)."""
     from planners.base import run_episode
 
     from .registry import make_policy
@@ -58,7 +71,6 @@ def run_case(planner: str, case_id: str) -> dict[str, Any]:
     t0 = time.perf_counter()
     row: dict[str, Any] = {"planner": planner}
     try:
-        sc = Scenario.from_case_id(case_id)
         row.update(case_fields(sc))
         policy = make_policy(planner)
         info, steps = run_episode(_env(), policy, sc)
@@ -94,7 +106,7 @@ def run_case(planner: str, case_id: str) -> dict[str, Any]:
     return row
 
 
-def _run_case_tuple(args: tuple[str, str]) -> dict[str, Any]:
+def _run_case_tuple(args: tuple[str, Scenario]) -> dict[str, Any]:
     return run_case(*args)
 
 
@@ -113,35 +125,59 @@ def evaluate(
     make_policy(planner)  # an unknown planner fails now, not in every worker
     if backend not in ("local", "ray"):
         raise ValueError(f"backend: must be 'local' or 'ray', got {backend!r}")
-    store = ResultStore(out)
-    done = store.done()
-    todo = [sc.case_id for sc in scenarios if (planner, sc.case_id) not in done]
-    workers = workers or os.cpu_count() or 1
+    workers = (os.cpu_count() or 1) if workers is None else workers
     if workers < 1:
         raise ValueError(f"workers: must be >= 1, got {workers}")
+    store = ResultStore(out)
+    done = store.done()
+    todo = [sc for sc in unique(scenarios)[0] if (planner, sc.case_id) not in done]
     bar = _progress(len(todo), f"{planner}", progress, initial=0)
+    stored = 0
+
+    def keep(row: dict[str, Any]) -> None:
+        nonlocal stored
+        store.append(row)
+        stored += 1
+        bar.update(1)
+
     try:
         if backend == "ray":
-            _run_ray(planner, todo, store, bar, ray_address, workers)
+            _run_ray(planner, todo, keep, ray_address, workers)
         elif workers == 1:
-            for cid in todo:
-                store.append(run_case(planner, cid))
-                bar.update(1)
+            for sc in todo:
+                keep(run_case(planner, sc))
         else:
-            import multiprocessing as mp
-
-            ctx = mp.get_context("fork" if hasattr(os, "fork") else "spawn")
-            with ctx.Pool(workers, maxtasksperchild=200) as pool:
-                for row in pool.imap_unordered(_run_case_tuple, ((planner, c) for c in todo), chunksize=1):
-                    store.append(row)
-                    bar.update(1)
+            _run_pool(planner, todo, keep, workers)
+    except KeyboardInterrupt:
+        bar.close()
+        store.compact()
+        left = len(todo) - stored
+        raise KeyboardInterrupt(
+            f"{len(store.done())} cases stored in {store.folder}, {left} not run; rerun the same command to resume"
+        ) from None
     finally:
         bar.close()
     store.compact()
     return store
 
 
-def _run_ray(planner: str, todo: list[str], store: ResultStore, bar, address: str | None, workers: int) -> None:
+def _ignore_sigint() -> None:
+    """Workers leave Ctrl-C to the parent, which stops them and keeps what is stored."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _run_pool(planner: str, todo: list[Scenario], keep, workers: int) -> None:
+    import multiprocessing as mp
+
+    ctx = mp.get_context("fork" if hasattr(os, "fork") else "spawn")
+    with ctx.Pool(workers, initializer=_ignore_sigint, maxtasksperchild=200) as pool:
+        for row in pool.imap_unordered(_run_case_tuple, ((planner, sc) for sc in todo), chunksize=1):
+            keep(row)
+
+
+def _run_ray(planner: str, todo: list[Scenario], keep, address: str | None, workers: int) -> None:
     try:
         import ray
     except ImportError:
@@ -159,11 +195,10 @@ def _run_ray(planner: str, todo: list[str], store: ResultStore, bar, address: st
         nonlocal pending
         ready, pending = ray.wait(pending, num_returns=1)
         for ref in ready:
-            store.append(ray.get(ref))
-            bar.update(1)
+            keep(ray.get(ref))
 
-    for cid in todo:  # a few tasks in flight per CPU; one new task per finished one
-        pending.append(task.remote(planner, cid))
+    for sc in todo:  # a few tasks in flight per CPU; one new task per finished one
+        pending.append(task.remote(planner, sc))
         if len(pending) >= limit:
             collect()
     while pending:

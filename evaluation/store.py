@@ -2,11 +2,17 @@
 
 Each finished case is first one JSON line in ``journal.jsonl``, flushed and synced as it
 is written, so an interrupted run loses no finished case. Every ``part_rows`` rows the
-journal rolls over into a Parquet part (``parts/part-NNNNN.parquet``, written whole and
-renamed into place) and starts afresh. ``table()`` reads parts and journal;
-``compact()`` writes them all to ``results.parquet``. A run over the same folder skips
-the (planner, case) pairs already there. A crash between writing a part and clearing the
-journal leaves rows twice; readers keep one.
+journal rolls over into a Parquet part (``parts/part-NNNNNN-XXXXXXXX.parquet``: a
+sequence number and a random tag, written whole and linked into place, never over
+another file) and starts afresh. ``compact()`` writes every row to ``results.parquet``
+(atomically) and only then removes the parts and the journal.
+
+``table()`` reads all three: ``results.parquet``, the parts and the journal, so a run
+resumes from any of them and never redoes or overwrites a finished row. Damage is
+reported (a ``StoreWarning`` naming the file and line), skipped, and kept aside, never
+fatal: a journal line that is not a valid row goes to ``journal.rejected.jsonl`` (its
+case reruns); an unreadable Parquet file is renamed ``*.unreadable``. A crash between
+writing a part and clearing the journal leaves rows twice; readers keep one.
 """
 
 from __future__ import annotations
@@ -14,21 +20,78 @@ from __future__ import annotations
 import json
 import math
 import os
+import secrets
+import warnings
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+KEY = ["planner", "case_id"]
+# Types a journal row must have where it has the field (None stands for NaN).
+_NUMBER = (int, float)
+_FIELD_TYPES: dict[str, tuple[type, ...]] = {
+    "success": (bool,),
+    "collision": (bool,),
+    "switches": (int,),
+    "steps": (int,),
+    "planning_calls": (int,),
+    "parking_time_s": _NUMBER,
+    "path_length_m": _NUMBER,
+    "road_width": _NUMBER,
+    "slot_length": _NUMBER,
+    "slot_width": _NUMBER,
+    "theta0_deg": _NUMBER,
+    "y0": _NUMBER,
+    "episode_wall_s": _NUMBER,
+    "parking_type": (str,),
+    "failed_criterion": (str,),
+}
+
+
+class StoreWarning(UserWarning):
+    """Damage found in a results folder: reported, skipped, kept aside."""
+
+
+def check_row(row: Any) -> str | None:
+    """Why ``row`` (a decoded journal line) is not a valid result row, or None."""
+    if not isinstance(row, dict):
+        return f"not a JSON object ({type(row).__name__})"
+    for k in KEY:
+        if not isinstance(row.get(k), str) or not row[k]:
+            return f"{k!r} missing or not a non-empty string"
+    for k, types in _FIELD_TYPES.items():
+        v = row.get(k)
+        if v is None:
+            continue
+        if not isinstance(v, types) or (bool not in types and isinstance(v, bool)):
+            return f"{k!r} has the wrong type ({type(v).__name__})"
+    return None
+
 
 class ResultStore:
-    def __init__(self, folder: str | Path, part_rows: int = 25):
+    """One results folder. ``writable=False`` only reads (no folder made, nothing moved)."""
+
+    def __init__(self, folder: str | Path, part_rows: int = 25, writable: bool = True):
         self.folder = Path(folder)
-        self.folder.mkdir(parents=True, exist_ok=True)
+        self.writable = writable
+        if self.folder.exists() and not self.folder.is_dir():
+            raise ValueError(f"{self.folder}: results folder is a file")
+        if writable:
+            try:
+                self.folder.mkdir(parents=True, exist_ok=True)
+            except OSError as err:
+                raise ValueError(f"{self.folder}: cannot create the results folder ({err.strerror})") from None
+            if not os.access(self.folder, os.W_OK):
+                raise ValueError(f"{self.folder}: results folder is not writable")
         self.journal = self.folder / "journal.jsonl"
+        self.rejected = self.folder / "journal.rejected.jsonl"
         self.parts = self.folder / "parts"
         self.parquet = self.folder / "results.parquet"
         self.part_rows = part_rows
-        self._pending = len(self._rows())
+        for tmp in self.parts.glob(".part-*.tmp") if writable and self.parts.exists() else ():
+            tmp.unlink(missing_ok=True)  # a part cut short by an interruption: its rows are in the journal
+        self._pending = len(self._rows()[0])
 
     def done(self) -> set[tuple[str, str]]:
         """(planner, case_id) pairs with a recorded row (errors included)."""
@@ -42,7 +105,7 @@ class ResultStore:
                 f.seek(-1, os.SEEK_END)  # stays on its own line, and is skipped
                 if f.read(1) != b"\n":
                     line = "\n" + line
-        with self.journal.open("a") as f:
+        with self.journal.open("a", encoding="utf-8") as f:
             f.write(line)
             f.flush()
             os.fsync(f.fileno())
@@ -51,46 +114,103 @@ class ResultStore:
             self.roll()
 
     def roll(self) -> None:
-        """Move the journal's rows into a new Parquet part."""
-        rows = self._rows()
+        """Move the journal's rows into a new Parquet part (bad lines aside, then the journal goes)."""
+        rows, bad = self._rows()
         if rows:
             self.parts.mkdir(exist_ok=True)
-            n = len(list(self.parts.glob("part-*.parquet")))
-            tmp = self.parts / f".part-{n:05d}.tmp"
-            pd.DataFrame(rows).to_parquet(tmp, index=False)
-            tmp.rename(self.parts / f"part-{n:05d}.parquet")
+            _write_new(pd.DataFrame(rows), self.parts, self._next_part_name())
+        self._keep_aside(bad)
         self.journal.unlink(missing_ok=True)
         self._pending = 0
 
-    def _rows(self) -> list[dict[str, Any]]:
+    def _next_part_name(self) -> str:
+        nums = [int(p.name.split("-")[1]) for p in self.parts.glob("part-*.parquet") if p.name.split("-")[1].isdigit()]
+        return f"part-{max(nums, default=-1) + 1:06d}-{secrets.token_hex(4)}.parquet"
+
+    def _rows(self) -> tuple[list[dict[str, Any]], list[tuple[int, bytes, str]]]:
+        """Valid journal rows, and the bad lines as (line number, raw bytes, why)."""
         if not self.journal.exists():
-            return []
-        rows = []
-        with self.journal.open() as f:
-            for line in f:
-                line = line.strip()
-                if not line:
+            return [], []
+        rows, bad = [], []
+        with self.journal.open("rb") as f:
+            for n, raw in enumerate(f, 1):
+                if not raw.strip():
                     continue
                 try:
-                    rows.append(json.loads(line))
+                    row = json.loads(raw.decode("utf-8"))
+                except UnicodeDecodeError:
+                    why = "not UTF-8 text"
                 except json.JSONDecodeError:
-                    continue  # a line cut short by an interruption: that case reruns
-        return rows
+                    why = "not valid JSON (cut short by an interruption?)"
+                else:
+                    why = check_row(row)
+                    if why is None:
+                        rows.append(row)
+                        continue
+                bad.append((n, raw, why))
+        return rows, bad
+
+    def _keep_aside(self, bad: list[tuple[int, bytes, str]]) -> None:
+        if not bad:
+            return
+        with self.rejected.open("ab") as f:
+            for _, raw, _ in bad:
+                f.write(raw if raw.endswith(b"\n") else raw + b"\n")
+            f.flush()
+            os.fsync(f.fileno())
+
+    def _read_parquet(self, path: Path) -> pd.DataFrame | None:
+        try:
+            return pd.read_parquet(path)
+        except Exception as err:  # noqa: BLE001  (any damage: report and set aside, never fatal)
+            what = f"{path}: unreadable ({type(err).__name__})"
+            if self.writable:
+                aside = path.with_name(path.name + ".unreadable")
+                path.rename(aside)
+                what += f"; moved to {aside.name}, its cases rerun"
+            warnings.warn(what, StoreWarning, stacklevel=3)
+            return None
 
     def table(self) -> pd.DataFrame:
-        frames = [pd.read_parquet(p) for p in sorted(self.parts.glob("part-*.parquet"))] if self.parts.exists() else []
-        rows = self._rows()
+        """Every finished row: results.parquet, then the parts, then the journal (last wins)."""
+        files = [self.parquet] if self.parquet.exists() else []
+        files += sorted(self.parts.glob("part-*.parquet")) if self.parts.exists() else []
+        frames = [df for df in map(self._read_parquet, files) if df is not None and len(df)]
+        rows, bad = self._rows()
+        for n, _, why in bad:
+            warnings.warn(f"{self.journal}:{n}: skipped, {why}; its case reruns", StoreWarning, stacklevel=2)
         if rows:
             frames.append(pd.DataFrame(rows))
         df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
         if len(df):
-            df = df.drop_duplicates(subset=["planner", "case_id"], keep="last").reset_index(drop=True)
+            df = df.drop_duplicates(subset=KEY, keep="last").reset_index(drop=True)
         return df
 
     def compact(self) -> Path:
+        """All rows into results.parquet (written whole, then renamed), then parts and journal
+        removed; bad journal lines are kept aside first."""
         df = self.table()
-        df.to_parquet(self.parquet, index=False)
+        if not len(df):
+            return self.parquet
+        tmp = self.folder / f".results-{secrets.token_hex(4)}.tmp"
+        df.to_parquet(tmp, index=False)
+        os.replace(tmp, self.parquet)
+        self._keep_aside(self._rows()[1])
+        self.journal.unlink(missing_ok=True)
+        for p in self.parts.glob("part-*.parquet") if self.parts.exists() else ():
+            p.unlink()
+        self._pending = 0
         return self.parquet
+
+
+def _write_new(df: pd.DataFrame, folder: Path, name: str) -> Path:
+    """Write ``df`` to ``folder/name`` whole; never replaces an existing file."""
+    tmp = folder / f".{name}.{secrets.token_hex(4)}.tmp"
+    df.to_parquet(tmp, index=False)
+    final = folder / name
+    os.link(tmp, final)  # fails if the name exists
+    tmp.unlink()
+    return final
 
 
 def _json_default(o):
@@ -104,19 +224,33 @@ def _json_default(o):
 
 
 def read_results(paths: list[str | Path]) -> pd.DataFrame:
-    """Results from folders (journal or Parquet) or Parquet files, concatenated."""
+    """Results from folders (journal, parts, results.parquet) or Parquet / JSON-lines files.
+
+    Raises ``ValueError`` naming a path that is missing, of the wrong kind or empty.
+    """
     frames = []
     for p in map(Path, paths):
         if p.is_dir():
-            store = ResultStore(p)
-            df = store.table()
-            frames.append(df if len(df) or not store.parquet.exists() else pd.read_parquet(store.parquet))
+            if not any(p.iterdir()):
+                raise ValueError(f"{p}: results folder is empty")
+            df = ResultStore(p, writable=False).table()
+        elif not p.exists():
+            raise ValueError(f"{p}: no such results folder or file")
         elif p.suffix == ".parquet":
-            frames.append(pd.read_parquet(p))
+            try:
+                df = pd.read_parquet(p)
+            except Exception as err:  # noqa: BLE001
+                raise ValueError(f"{p}: not a readable Parquet file ({type(err).__name__})") from None
         elif p.suffix == ".jsonl":
-            frames.append(pd.read_json(p, lines=True))
+            try:
+                df = pd.read_json(p, lines=True)
+            except ValueError as err:
+                raise ValueError(f"{p}: not a JSON-lines results file ({err})") from None
         else:
             raise ValueError(f"{p}: expected a results folder, a .parquet or a .jsonl file")
+        if not len(df) or not set(KEY) <= set(df.columns):
+            raise ValueError(f"{p}: holds no result rows")
+        frames.append(df)
     if not frames:
         raise ValueError("no results given")
     return pd.concat(frames, ignore_index=True)

@@ -139,8 +139,8 @@ class RenderConfig(StrictModel):
 class EnvConfig(StrictModel):
     """Everything ``MirrorPark-v0`` can be configured with."""
 
-    dt: float = Field(0.1, gt=0, le=1.0)
-    substep: float = Field(0.01, gt=0, le=0.02)
+    dt: float = Field(0.1, ge=0.01, le=1.0)  # [s] control step
+    substep: float = Field(0.01, ge=0.001, le=0.02)  # [s] integration and collision-check sub-step
     criteria: CriteriaConfig = CriteriaConfig()
     reward: RewardConfig = RewardConfig()
     parking_types: list[ParkingTypeName] = Field(default_factory=lambda: list(PARKING_TYPES), min_length=1)

@@ -14,7 +14,7 @@ from gymnasium import spaces
 
 from .config import EnvConfig, default_env, merge
 from .criteria import SuccessCriteria
-from .grid import TYPES, default_grid_cases
+from .grid import TYPES, grid_for
 from .rendering import Renderer
 from .scenario import Scenario, ScenarioGeometry
 from .vehicle import TruthModel, VehicleParams, VehicleState, from_action
@@ -151,9 +151,14 @@ class MirrorParkEnv(gym.Env):
             return Scenario.from_case_id(spec)
         if spec is not None:
             raise ValueError(f"reset options: 'scenario' must be a Scenario or a case id, got {type(spec).__name__}")
-        grid = default_grid_cases()
+        grid = grid_for(self.params)  # only cases that can be generated for this car
         if self._pool is None:
             self._pool = np.concatenate([grid.indices(t) for t in self.cfg.parking_types])
+            if not len(self._pool):
+                raise ValueError(
+                    f"vehicle: no Table III case of {', '.join(self.cfg.parking_types)} fits a car "
+                    f"{self.params.length:.2f} m long and {self.params.width:.2f} m wide"
+                )
         return grid.scenario(int(self._pool[self.np_random.integers(len(self._pool))]))
 
     def step(self, action):

@@ -11,12 +11,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
 from .config import GridConfig, default_grid
-from .scenario import ParkingType, Scenario, start_fits_road
+from .scenario import ParkingType, Scenario, slot_fits_car, start_fits_road
 from .vehicle import VehicleParams
 
 TYPES = tuple(ParkingType)
@@ -49,6 +49,8 @@ class Grid:
                 th, y = th[ok], y[ok]
                 for sl in tg.slot_length.values():
                     for sw in tg.slot_width.values():
+                        if not slot_fits_car(vehicle, sl, sw):
+                            continue  # too small for this car: not a case
                         n = len(th)
                         cols["type"].append(np.full(n, ti, dtype=np.int8))
                         cols["road_width"].append(np.full(n, rw))
@@ -184,3 +186,11 @@ def default_grid_cases() -> Grid:
     if _DEFAULT is None:
         _DEFAULT = Grid.from_config()
     return _DEFAULT
+
+
+@lru_cache(maxsize=8)
+def grid_for(vehicle: VehicleParams) -> Grid:
+    """The shipped Table III grid's cases that can be generated for ``vehicle``."""
+    if vehicle == VehicleParams.table_ii():
+        return default_grid_cases()
+    return Grid.from_config(default_grid(), vehicle)

@@ -89,13 +89,18 @@ class Scenario:
 
     @property
     def case_id(self) -> str:
-        """Stable, readable id, e.g. ``parallel_rw4.5_sl3.82_sw2.50_th-90_y0.0``."""
+        """Stable, readable name, e.g. ``parallel_rw4.50_sl3.82_sw2.50_th-90_y0.00``.
+
+        Grid values print at the grid's precision (cm, whole degrees); any other value
+        with as many digits as it needs (up to 1e-6), so that distinct cases get distinct
+        ids. A run uses the scenario's own values, never ones parsed back from its id.
+        """
         cid = (
-            f"{self.parking_type.value}_rw{self.road_width:.2f}_sl{self.slot_length:.2f}"
-            f"_sw{self.slot_width:.2f}_th{self.theta0_deg:+.0f}_y{self.y0:.2f}"
+            f"{self.parking_type.value}_rw{_fmt(self.road_width, 2)}_sl{_fmt(self.slot_length, 2)}"
+            f"_sw{_fmt(self.slot_width, 2)}_th{_fmt(self.theta0_deg, 0, sign=True)}_y{_fmt(self.y0, 2)}"
         )
         if self.start_x_offset != 0.0:
-            cid += f"_dx{self.start_x_offset:+.2f}"
+            cid += f"_dx{_fmt(self.start_x_offset, 2, sign=True)}"
         return cid
 
     @classmethod
@@ -187,12 +192,27 @@ def start_fits_road(vehicle: VehicleParams, theta0, y0, road_width, tol: float =
     return (ys.min(axis=-1) >= -tol) & (ys.max(axis=-1) <= np.asarray(road_width) + tol)
 
 
+def _fmt(value: float, decimals: int, sign: bool = False) -> str:
+    """``value`` with ``decimals`` decimals if that is exact (to 1e-9), else to 1e-6 with
+    trailing zeros dropped."""
+    plus = "+" if sign else ""
+    s = f"{value:{plus}.{decimals}f}"
+    if abs(float(s) - value) <= 1e-9:
+        return s
+    return f"{value:{plus}.6f}".rstrip("0")
+
+
+def slot_fits_car(vehicle: VehicleParams, slot_length: float, slot_width: float) -> bool:
+    """The car's outline fits the slot at all (in its length and width along the slot's)."""
+    return slot_length >= vehicle.length - 1e-9 and slot_width >= vehicle.width - 1e-9
+
+
 def build_geometry(sc: Scenario, vehicle: VehicleParams, scene_margin: float = 25.0) -> ScenarioGeometry:
     """Slot, infeasible regions, start and target of ``sc``."""
     t, rw, sl, sw = sc.parking_type, sc.road_width, sc.slot_length, sc.slot_width
     L, D = scene_margin, DEPTH_BEYOND
     car_len, car_w = vehicle.length, vehicle.width
-    if sl < car_len - 1e-9 or sw < car_w - 1e-9:
+    if not slot_fits_car(vehicle, sl, sw):
         if t is ParkingType.PARALLEL:
             need = f"slot_length >= car length {car_len:.2f} m and slot_width >= car width {car_w:.2f} m"
         else:
@@ -250,6 +270,12 @@ def build_geometry(sc: Scenario, vehicle: VehicleParams, scene_margin: float = 2
     tx = target_c[0] - off * math.cos(heading)
     ty = target_c[1] - off * math.sin(heading)
     start = VehicleState(E + sc.start_x_offset, sc.y0, sc.theta0)
+    lo, hi = x_lo + car_len - E, x_hi - car_len - E  # the env's scene: rear axle a car length inside its ends
+    if not lo < sc.start_x_offset < hi:
+        raise ValueError(
+            f"start_x_offset: must be in ({lo:.2f}, {hi:.2f}) m for this scene "
+            f"(scene_margin={scene_margin} m), got {sc.start_x_offset}"
+        )
     return ScenarioGeometry(
         scenario=sc,
         vehicle=vehicle,
