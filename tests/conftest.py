@@ -25,3 +25,19 @@ def require_module():
 @pytest.fixture(autouse=True)
 def _headless(monkeypatch):
     monkeypatch.setenv("SDL_VIDEODRIVER", os.environ.get("SDL_VIDEODRIVER", "offscreen"))
+
+
+# Property tests: a few examples in every run; `pytest --hypothesis-profile=slow -m property`
+# runs 500 each (the acceptance run for the reliability targets).
+try:
+    from hypothesis import HealthCheck, settings
+
+    settings.register_profile(
+        "default", max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    )
+    settings.register_profile(
+        "slow", max_examples=500, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    )
+    settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+except ImportError:  # hypothesis comes with the test extra
+    pass
