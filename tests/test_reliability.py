@@ -365,9 +365,12 @@ def test_random_valid_configs_reset_and_step(width, front, ptype, seed):
     except ValueError as err:  # the one allowed refusal: no case of the type fits this car
         assert "vehicle: no Table III case" in str(err)
         return
+    env.action_space.seed(seed)
     for _ in range(3):
-        obs, reward, *_ = env.step(env.action_space.sample())
+        obs, reward, term, trunc, _ = env.step(env.action_space.sample())
         assert math.isfinite(reward) and all(np.isfinite(v).all() for v in obs.values())
+        if term or trunc:  # e.g. a start next to a kerb and a first move into it
+            break
 
 
 @pytest.mark.property
