@@ -19,8 +19,9 @@ def cmd_grid(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(counts))
     else:
+        feasible = counts.pop("feasible")
         for k, v in counts.items():
-            print(f"{k:>9}: {v:,}")
+            print(f"{k:>9}: {v:>6,}  ({feasible[k]:,} with an ISO-compliant final pose)")
     return 0
 
 

@@ -16,8 +16,11 @@ from typing import Any
 
 import numpy as np
 
+from mirrorpark_env.criteria import iso_pose_exists
 from mirrorpark_env.scenario import Scenario
+from mirrorpark_env.vehicle import VehicleParams
 
+from .causes import row_cause
 from .store import ResultStore
 
 MARGINS = ("M_f", "M_r", "M_e", "M_fl", "M_fr", "M_rl", "M_rr")
@@ -70,6 +73,7 @@ def run_case(planner: str, sc: Scenario) -> dict[str, Any]:
 
     t0 = time.perf_counter()
     row: dict[str, Any] = {"planner": planner}
+    info = None
     try:
         row.update(case_fields(sc))
         policy = make_policy(planner)
@@ -91,6 +95,9 @@ def run_case(planner: str, sc: Scenario) -> dict[str, Any]:
             setup_ms=1e3 * float(getattr(policy, "setup_time_s", 0.0)),
             planner_status=policy.status,
             error=None,
+            inside_slot=bool(info["inside_slot"]),
+            min_clearance_m=float(info["min_clearance"]),
+            speed_at_min_clearance=float(info["speed_at_min_clearance"]),
         )
         for m in MARGINS:
             row[m] = float(info["margins"].get(m, math.nan))
@@ -102,6 +109,10 @@ def run_case(planner: str, sc: Scenario) -> dict[str, Any]:
             error=f"{type(err).__name__}: {err}",
             traceback=traceback.format_exc(limit=5),
         )
+    feasible = bool(iso_pose_exists(sc.parking_type.value, sc.slot_length, sc.slot_width, VehicleParams.table_ii()))
+    row["feasible"] = feasible
+    ended = None if row.get("planner_status") == "error" else info
+    row["failure_cause"], row["failure_amount"] = row_cause(row, ended, feasible)
     row["episode_wall_s"] = time.perf_counter() - t0
     return row
 

@@ -26,7 +26,7 @@ import numpy as np
 from .angles import wrap_angle
 from .config import CriteriaConfig
 from .scenario import ParkingType, ScenarioGeometry
-from .vehicle import CORNER_NAMES
+from .vehicle import CORNER_NAMES, VehicleParams
 
 # Order in which a failing criterion is reported (the first that fails).
 CRITERIA = ("collision", "time", "heading", "inside_slot", "margins", "stopped")
@@ -134,3 +134,27 @@ class SuccessCriteria:
         )
         failed = next((name for name, ok in checks if not ok), None)
         return Verdict(failed is None, failed, margins, herr, inside, stopped, collided)
+
+
+def iso_pose_exists(parking_type, slot_length, slot_width, vehicle: VehicleParams, cfg: CriteriaConfig | None = None):
+    """Whether any pose in a slot passes the ISO check, for arrays of slot sizes.
+
+    Exact: the margins are distances from the outline to the slot's sides, and turning the
+    car by any heading error widens its outline along both of the slot's axes (by
+    L sin(phi) + W cos(phi) >= W and L cos(phi) + W sin(phi) >= L for |phi| <= 3 deg), so
+    the best pose is aligned with the slot, centred across it, and along it centred
+    (parallel: front and rear margins) or against the back (reverse, angle: the entrance
+    margin is then SL - L):
+
+    - parallel: M_f, M_r > 0 and M_e > 0 (the kerb side >= 0): SL > L and SW > W;
+    - reverse, angle: four side margins >= m and the entrance margin >= m (m = 0.1 m):
+      SW >= W + 2 m and SL >= L + m.
+    """
+    cfg = cfg or CriteriaConfig()
+    ptype = np.asarray(parking_type)
+    sl, sw = np.asarray(slot_length, float), np.asarray(slot_width, float)
+    L, W, m = vehicle.length, vehicle.width, cfg.min_margin_perpendicular
+    tol = 1e-9
+    parallel = (sl - L > tol) & (sw - W > tol)
+    perpendicular = (sw - W >= 2 * m - tol) & (sl - L >= m - tol)
+    return np.where(ptype == ParkingType.PARALLEL.value, parallel, perpendicular)

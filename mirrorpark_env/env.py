@@ -14,6 +14,7 @@ from gymnasium import spaces
 
 from .config import EnvConfig, default_env, merge
 from .criteria import SuccessCriteria
+from .geometry import COLLISION_TOL
 from .grid import TYPES, grid_for
 from .rendering import Renderer
 from .scenario import Scenario, ScenarioGeometry
@@ -127,6 +128,8 @@ class MirrorParkEnv(gym.Env):
         self.path_length = 0.0
         self._last_dir = 0
         self.collided = bool(g.checker.collides(s.x, s.y, s.theta)[0])
+        self.min_clearance = float(self._gaps(np.array([[s.x, s.y, s.theta]]))[0])
+        self.speed_at_min_clearance = 0.0
         self._x_range = (g.bounds[0] + self.params.length, g.bounds[1] - self.params.length)
         sc = scenario
         onehot = [1.0 if t is sc.parking_type else 0.0 for t in TYPES]
@@ -140,8 +143,6 @@ class MirrorParkEnv(gym.Env):
         obs = self._obs()
         info = self._info(False)
         info.update(scenario=scenario, case_id=scenario.case_id, geometry=g)
-        if self.render_mode == "human":
-            self.render()
         return obs, info
 
     def _scenario_from(self, spec: Scenario | str | None) -> Scenario:
@@ -168,12 +169,16 @@ class MirrorParkEnv(gym.Env):
             raise RuntimeError("MirrorPark-v0: the episode has ended; call reset()")
         a_cmd, d_cmd = from_action(self.params, action)
         traj = self.model.step(self.state, a_cmd, d_cmd)
-        hit = self.geometry.checker.collides(traj[:, 0], traj[:, 1], traj[:, 2])
+        gap = self._gaps(traj)
+        hit = gap < -COLLISION_TOL
         n_sub = len(traj)
         if hit.any():
             n_sub = int(np.argmax(hit)) + 1
-            traj = traj[:n_sub]
+            traj, gap = traj[:n_sub], gap[:n_sub]
             self.collided = True
+        i = int(np.argmin(gap))
+        if gap[i] < self.min_clearance:  # the closest the car has come to any obstacle
+            self.min_clearance, self.speed_at_min_clearance = float(gap[i]), float(abs(traj[i, 3]))
         self.path_length += float(traj[:, 6].sum())
         self._count_switches(traj[:, 3].tolist())
         self.state = traj[-1, :6]
@@ -190,9 +195,15 @@ class MirrorParkEnv(gym.Env):
         reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], info))
         if self._renderer is not None:
             self._renderer.update(x, y, th, self.state[3])
-        if self.render_mode == "human":
-            self.render()
         return obs, reward, terminated, truncated, info
+
+    def _gaps(self, traj: np.ndarray) -> np.ndarray:
+        """Each sub-step's gap to the nearest obstacle: the separating-axis gap, a lower bound
+        on the Euclidean distance (< 0: overlap)."""
+        checker = self.geometry.checker
+        if not len(checker.obstacles.polygons):
+            return np.full(len(traj), np.inf)
+        return -checker.penetration(traj[:, 0], traj[:, 1], traj[:, 2]).max(axis=1)
 
     def _count_switches(self, speeds: list[float]) -> None:
         """A switch is a change of driving direction between two movements."""
@@ -237,6 +248,8 @@ class MirrorParkEnv(gym.Env):
             "direction_switches": self.switches,
             "parking_time": self.time,
             "path_length": self.path_length,
+            "min_clearance": self.min_clearance,  # [m] closest to any obstacle so far (separating-axis gap)
+            "speed_at_min_clearance": self.speed_at_min_clearance,  # [m/s] |v| at that moment
             "vehicle_state": VehicleState(x, y, th, v, a, d),
         }
 

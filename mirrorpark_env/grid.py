@@ -16,6 +16,7 @@ from functools import cached_property, lru_cache
 import numpy as np
 
 from .config import GridConfig, default_grid
+from .criteria import iso_pose_exists
 from .scenario import ParkingType, Scenario, slot_fits_car, start_fits_road
 from .vehicle import VehicleParams
 
@@ -29,7 +30,7 @@ class Grid:
 
     config: GridConfig
     vehicle: VehicleParams
-    columns: dict[str, np.ndarray]  # "type" (int index into TYPES) + FACTORS
+    columns: dict[str, np.ndarray]  # "type" (int index into TYPES), FACTORS, "feasible" (an ISO pose exists)
 
     @classmethod
     def from_config(cls, config: GridConfig | None = None, vehicle: VehicleParams | None = None) -> Grid:
@@ -59,6 +60,8 @@ class Grid:
                         cols["theta0_deg"].append(th)
                         cols["y0"].append(y)
         columns = {k: (np.concatenate(v) if v else np.empty(0)) for k, v in cols.items()}
+        names = np.array([t.value for t in TYPES])[columns["type"].astype(int)]
+        columns["feasible"] = iso_pose_exists(names, columns["slot_length"], columns["slot_width"], vehicle)
         return cls(config, vehicle, columns)
 
     def __len__(self) -> int:
@@ -79,12 +82,20 @@ class Grid:
     def __iter__(self) -> Iterator[Scenario]:
         return (self.scenario(i) for i in range(len(self)))
 
-    def counts(self) -> dict[str, int]:
-        """Cases per parking type and in total."""
-        n = np.bincount(self.columns["type"].astype(int), minlength=len(TYPES))
-        out = {t.value: int(n[i]) for i, t in enumerate(TYPES)}
+    def counts(self) -> dict:
+        """Cases per parking type and in total, and under ``feasible`` those whose slot
+        admits an ISO-compliant final pose (``criteria.iso_pose_exists``)."""
+        types = self.columns["type"].astype(int)
+        n = np.bincount(types, minlength=len(TYPES))
+        f = np.bincount(types[self.columns["feasible"]], minlength=len(TYPES))
+        out: dict = {t.value: int(n[i]) for i, t in enumerate(TYPES)}
         out["total"] = int(n.sum())
+        out["feasible"] = {t.value: int(f[i]) for i, t in enumerate(TYPES)} | {"total": int(f.sum())}
         return out
+
+    def is_feasible(self, sc: Scenario) -> bool:
+        """Whether ``sc``'s slot admits an ISO-compliant final pose for this grid's car."""
+        return bool(iso_pose_exists(sc.parking_type.value, sc.slot_length, sc.slot_width, self.vehicle))
 
     @cached_property
     def _id_index(self) -> dict[str, int]:

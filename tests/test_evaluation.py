@@ -199,7 +199,13 @@ def test_two_cases_on_local_ray(tmp_path, require_module):
 
 def test_grid_count_json(capsys):
     assert cli(["grid", "--count", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out) == {"parallel": 12420, "reverse": 46629, "angle": 11385, "total": 70434}
+    assert json.loads(capsys.readouterr().out) == {
+        "parallel": 12420,
+        "reverse": 46629,
+        "angle": 11385,
+        "total": 70434,
+        "feasible": {"parallel": 12075, "reverse": 40977, "angle": 10005, "total": 63057},
+    }
 
 
 def test_report_writes_markdown_and_figures(tmp_path):

@@ -14,7 +14,9 @@ def grid() -> Grid:
 
 
 def test_counts_follow_the_design_rule(grid):
-    assert grid.counts() == {"parallel": 12420, "reverse": 46629, "angle": 11385, "total": 70434}
+    counts = grid.counts()
+    assert counts.pop("feasible")["total"] == 63057  # checked slot by slot in test_verdicts.py
+    assert counts == {"parallel": 12420, "reverse": 46629, "angle": 11385, "total": 70434}
 
 
 def test_ids_are_unique_and_stable(grid):

@@ -147,3 +147,47 @@ def test_angle_lateral_shift(shift, success, collision, failed):
 def test_angle_heading_four_degrees_off():
     x, y, th = ANG.target
     assert check(ANG, x, y, th - 4 * DEG).failed == "heading"
+
+
+# ---------------------------------------------------------- an ISO pose exists
+# Hand-worked limits for the paper's car (L = 3.82 m, W = 1.67 m): parallel SL > 3.82 and
+# SW > 1.67; reverse and angle SW >= 1.67 + 2 x 0.1 = 1.87 and SL >= 3.82 + 0.1 = 3.92.
+@pytest.mark.parametrize(
+    "ptype, sl, sw, exists",
+    [
+        ("parallel", 3.821, 2.5, True),
+        ("parallel", 3.819, 2.5, False),
+        ("parallel", 3.82, 2.5, False),  # margins front and rear both 0: not > 0
+        ("parallel", 5.0, 1.671, True),
+        ("parallel", 5.0, 1.669, False),
+        ("reverse", 4.82, 1.871, True),
+        ("reverse", 4.82, 1.869, False),
+        ("reverse", 3.921, 2.3, True),
+        ("reverse", 3.919, 2.3, False),
+        ("angle", 4.82, 1.871, True),
+        ("angle", 4.82, 1.869, False),
+    ],
+)
+def test_an_iso_pose_exists_just_above_the_limit_and_not_below(ptype, sl, sw, exists):
+    from mirrorpark_env import VehicleParams
+    from mirrorpark_env.criteria import iso_pose_exists
+
+    P = VehicleParams.table_ii()
+    assert bool(iso_pose_exists(ptype, sl, sw, P)) is exists
+    if sl < P.length or sw < P.width:
+        return  # narrower or shorter than the car: no geometry to search
+    g = Scenario.from_degrees(ptype, 7.0 if ptype == "reverse" else 4.5, sl, sw, 0, 2.5).build()
+    crit = SuccessCriteria(g)
+    x, y, th = g.target
+    # A brute-force search: every shift that keeps the car in the slot along its axis, shifts
+    # across it, and heading errors within 3 deg; some pose passes exactly when one exists.
+    u = np.array([math.cos(th), math.sin(th)])
+    n = np.array([-u[1], u[0]])
+    best = False
+    room = 0.5 * (sl - P.length)
+    for da in [*np.linspace(-room - 0.01, room + 0.01, 41), -room + 1e-9, room - 1e-9]:  # and against each end
+        for dn in np.linspace(-0.05, 0.05, 11):
+            for dth in np.radians([-3.0, -1.0, 0.0, 1.0, 3.0]):
+                p = np.array([x, y]) + da * u + dn * n
+                best |= crit.verdict(p[0], p[1], th + dth, 0.0, 0.0, False).success
+    assert best is exists
