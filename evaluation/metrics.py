@@ -3,9 +3,12 @@
 - success rate per parking type and over all cases (error rows count as failures);
 - completion: mean direction switches and parking time over successful episodes;
 - computation: every planning call pooled, median and p95; episode wall time;
-- ODD: a cell of initial conditions (type, road width, slot size, theta0, y0) is in the
-  ODD when the planner succeeds there (in >= 95 % of its runs where a cell holds
-  several); its size is the count of such cells.
+- ODD (the paper, III.A.c): "a collection of initial conditions which could successfully
+  complete the parking process with a rate of 95 %. Initial conditions consist of SL, SW,
+  theta0 and y0." A cell is (type, SL, SW, theta0, y0) and pools the runs of every road
+  width that holds it; it is in the ODD when >= 95 % of its runs park. The ODD size is
+  the count of such cells.
+- success over feasible cases: those whose slot admits an ISO-compliant pose at all.
 """
 
 from __future__ import annotations
@@ -19,7 +22,8 @@ import pandas as pd
 from mirrorpark_env.config import PARKING_TYPES
 
 TYPES = PARKING_TYPES
-CELL = ("parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "y0")
+CELL = ("parking_type", "slot_length", "slot_width", "theta0_deg", "y0")  # road width pooled (the paper's ODD)
+ODD_RATE = 0.95
 
 # The paper's headline figures (abstract and section III.B).
 PAPER = {
@@ -52,6 +56,9 @@ def summary(df: pd.DataFrame, planner: str | None = None) -> dict[str, Any]:
     success = df["success"].fillna(False).astype(bool) if len(df) else pd.Series(dtype=bool)
     rates = {t: _rate(success[df["parking_type"] == t]) for t in TYPES} if len(df) else dict.fromkeys(TYPES)
     rates["all"] = _rate(success)
+    feasible = df["feasible"].fillna(True).astype(bool) if "feasible" in df else pd.Series(True, index=df.index)
+    rates_feasible = {t: _rate(success[feasible & (df["parking_type"] == t)]) for t in TYPES} if len(df) else {}
+    rates_feasible["all"] = _rate(success[feasible]) if len(df) else None
     ok = df[success] if len(df) else df
     times = _plan_times(df)
     wall = df["episode_wall_s"].dropna() if "episode_wall_s" in df else pd.Series(dtype=float)
@@ -60,6 +67,7 @@ def summary(df: pd.DataFrame, planner: str | None = None) -> dict[str, Any]:
         "planner": planner if planner is not None else (planners[0] if len(planners) == 1 else planners),
         "cases": int(len(df)),
         "success_rate": rates,
+        "success_rate_feasible": rates_feasible,  # over cases whose slot admits an ISO pose
         "mean_switches": float(ok["switches"].mean()) if len(ok) else None,
         "mean_parking_time_s": float(ok["parking_time_s"].mean()) if len(ok) else None,
         "plan_time_ms": {
@@ -73,9 +81,12 @@ def summary(df: pd.DataFrame, planner: str | None = None) -> dict[str, Any]:
     }
 
 
-def odd_cells(df: pd.DataFrame, threshold: float = 0.95) -> pd.DataFrame:
-    """Per planner and cell: runs, success fraction, and whether the cell is in the ODD."""
-    g = df.assign(success=df["success"].fillna(False).astype(float)).groupby(["planner", *CELL])
+def odd_cells(df: pd.DataFrame, threshold: float = ODD_RATE) -> pd.DataFrame:
+    """Per planner and cell (road widths pooled): runs, success fraction, in the ODD or not.
+
+    Cell values are rounded to 1e-6 so that one level read back from Parquet is one cell."""
+    key = df[list(CELL[1:])].round(6)
+    g = df.assign(success=df["success"].fillna(False).astype(float), **key).groupby(["planner", *CELL])
     cells = g["success"].agg(runs="size", rate="mean").reset_index()
     cells["in_odd"] = cells["rate"] >= threshold - 1e-12
     return cells

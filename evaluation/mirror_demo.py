@@ -23,7 +23,7 @@ from planners.mirror.mirror_line import mirrored_target
 from planners.mirror.plans import Plan
 from planners.mirror.policy import MirrorPolicy
 
-from .report import _plt
+from .figures import _plt
 
 # One standard-sample case per type in which a plan holds its switch (many plans switch
 # only at their ends, where the mirror has nothing to show): Fig. 19-like manoeuvres.

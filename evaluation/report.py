@@ -7,121 +7,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .metrics import TYPES, headline, odd_size, summary
-
-SLOT = {"parallel": "slot_length", "reverse": "slot_width", "angle": "slot_width"}
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path: Path) -> Path:
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
-def _rate_by(df: pd.DataFrame, col: str) -> pd.Series:
-    return df.assign(success=df["success"].fillna(False).astype(float)).groupby(col)["success"].mean()
-
-
-def fig_success_by_type(df, planners, out: Path) -> Path:
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6, 3.5))
-    w = 0.8 / max(len(planners), 1)
-    for j, p in enumerate(planners):
-        d = df[df["planner"] == p]
-        r = _rate_by(d, "parking_type")
-        vals = [100 * r.get(t, np.nan) for t in TYPES]
-        ax.bar(np.arange(3) + j * w, vals, w, label=p)
-    ax.set_xticks(np.arange(3) + w * (len(planners) - 1) / 2, TYPES)
-    ax.set_ylabel("success rate [%]")
-    ax.set_ylim(0, 100)
-    ax.legend()
-    ax.set_title("Success rate per parking type (paper Fig. 20)")
-    return _save(fig, out / "success_by_type.png")
-
-
-def _per_type_lines(df, planners, col, out: Path, name: str, title: str, xlabel_fn) -> Path:
-    plt = _plt()
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.3), sharey=True)
-    for ax, t in zip(axes, TYPES):
-        for p in planners:
-            d = df[(df["planner"] == p) & (df["parking_type"] == t)]
-            c = col(t) if callable(col) else col
-            if len(d):
-                r = _rate_by(d, c)
-                ax.plot(r.index, 100 * r.values, "o-", ms=3, label=p)
-        ax.set_title(t)
-        ax.set_xlabel(xlabel_fn(t))
-        ax.set_ylim(-3, 103)
-    axes[0].set_ylabel("success rate [%]")
-    axes[0].legend()
-    fig.suptitle(title)
-    return _save(fig, out / name)
-
-
-def fig_odd(df, planners, t: str, out: Path, sizes) -> Path:
-    plt = _plt()
-    fig, axes = plt.subplots(1, len(planners), figsize=(5.5 * len(planners), 4), squeeze=False)
-    for ax, p in zip(axes[0], planners):
-        d = df[(df["planner"] == p) & (df["parking_type"] == t)]
-        ok = d["success"].fillna(False).astype(bool)
-        x = d[SLOT[t]] + 0.02 * d["theta0_deg"] / 90.0  # theta0 spreads the points of one slot size
-        ax.scatter(x[ok], d["y0"][ok], s=10, c="tab:green", label="success")
-        ax.scatter(x[~ok], d["y0"][~ok], s=10, c="tab:red", marker="x", label="failure")
-        ax.set_xlabel(f"{SLOT[t].replace('_', ' ')} [m] (offset by theta0)")
-        ax.set_ylabel("y0 [m]")
-        ax.set_title(f"{p}: ODD {sizes.get(p, {}).get(t, 0)} cells")
-        ax.legend(fontsize=7)
-    fig.suptitle(f"{t}: results and ODD (paper Fig. 24)")
-    return _save(fig, out / f"odd_{t}.png")
-
-
-def fig_efficiency(df, planners, out: Path) -> Path:
-    plt = _plt()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.5))
-    ok = df[df["success"].fillna(False).astype(bool)]
-    for ax, col, label in (
-        (axes[0], "switches", "direction switches"),
-        (axes[1], "parking_time_s", "parking time [s]"),
-    ):
-        data, labels = [], []
-        for t in TYPES:
-            for p in planners:
-                v = ok.loc[(ok["planner"] == p) & (ok["parking_type"] == t), col].dropna().values
-                data.append(v if len(v) else [np.nan])
-                labels.append(f"{t}\n{p}")
-        ax.boxplot(data, tick_labels=labels)
-        ax.set_ylabel(label)
-        ax.tick_params(axis="x", labelsize=7)
-    fig.suptitle("Completion efficiency over successful episodes (paper Fig. 25)")
-    return _save(fig, out / "efficiency.png")
-
-
-def fig_plan_time(df, planners, out: Path) -> Path:
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6, 3.5))
-    for p in planners:
-        d = df[df["planner"] == p]
-        times = [t for ts in d["plan_times_ms"].dropna() for t in (() if ts is None else ts)]
-        if times:
-            ax.hist(np.log10(np.maximum(times, 1e-3)), bins=40, alpha=0.6, label=p)
-    ax.axvline(np.log10(74.0), color="k", ls="--", lw=1, label="paper mean (74 ms)")
-    ax.set_xlabel("log10 planning time per call [ms]")
-    ax.set_ylabel("calls")
-    ax.legend()
-    ax.set_title("Planning time per call")
-    return _save(fig, out / "plan_time.png")
+from .figures import (
+    SLOT,
+    _per_type_lines,
+    fig_clearance,
+    fig_efficiency,
+    fig_odd,
+    fig_plan_time,
+    fig_success_by_type,
+)
+from .metrics import TYPES, headline, odd_cells, odd_size, summary
 
 
 def _fmt(v, pct=False) -> str:
@@ -185,41 +80,84 @@ def write_report(df: pd.DataFrame, out: str | Path, baseline: str | None = None)
             lambda t: "y1 [m]",
         )
     )
+    cells = odd_cells(df)
     sizes = odd_size(df)
-    figs += [fig_odd(df, planners, t, out, sizes) for t in TYPES if (df["parking_type"] == t).any()]
+    figs += [fig_odd(cells, planners, t, out, sizes) for t in TYPES if (df["parking_type"] == t).any()]
     figs.append(fig_efficiency(df, planners, out))
     figs.append(fig_plan_time(df, planners, out))
+    if "min_clearance_m" in df and df["min_clearance_m"].notna().any():
+        figs.append(fig_clearance(df, planners, out))
 
     lines = ["# MirrorPark evaluation report", ""]
     per_type = ", ".join(f"{t}: {df[df.parking_type == t].case_id.nunique()}" for t in TYPES)
-    lines += [
-        f"Cases: {df['case_id'].nunique()} ({per_type}); planners: {', '.join(planners)}.",
-        "",
-    ]
-    lines += [
+    lines += [f"Cases: {df['case_id'].nunique()} ({per_type}); planners: {', '.join(planners)}.", ""]
+    lines += _summary_table(df, planners, sizes)
+    lines += _success_tables(df, planners)
+    lines += _headline_table(df, main, baseline)
+    lines += _failure_table(df, planners)
+    lines += _clearance_table(df, planners)
+    lines += ["## Figures", ""]
+    lines += [f"![{f.stem}]({f.name})" for f in figs]
+    path = out / "report.md"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _pct(v) -> str:
+    return "n/a" if v is None or (isinstance(v, float) and np.isnan(v)) else f"{100 * v:.1f} %"
+
+
+def _summary_table(df, planners, sizes) -> list[str]:
+    lines = [
         "## Summary",
         "",
-        "| planner | cases | success all | parallel | reverse | angle | switches | parking time [s] | plan ms median"
-        " | p95 | setup ms | ODD cells |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| planner | cases | success | over feasible | switches | parking time [s] | plan ms median | p95"
+        " | setup ms | ODD cells |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for p in planners:
         s = summary(df, p)
-        r = s["success_rate"]
-        pct = lambda v: "n/a" if v is None else f"{100 * v:.1f} %"  # noqa: E731
         lines.append(
-            f"| {p} | {s['cases']} | {pct(r['all'])} | {pct(r['parallel'])} | {pct(r['reverse'])} | {pct(r['angle'])}"
-            " | "
-            f"{_fmt(s['mean_switches'])} | {_fmt(s['mean_parking_time_s'])} | {_fmt(s['plan_time_ms']['median'])} | "
-            f"{_fmt(s['plan_time_ms']['p95'])} | {_fmt(s['setup_ms']['median'])} | {sizes.get(p, {}).get('all', 0)} |"
+            f"| {p} | {s['cases']} | {_pct(s['success_rate']['all'])} | {_pct(s['success_rate_feasible']['all'])}"
+            f" | {_fmt(s['mean_switches'])} | {_fmt(s['mean_parking_time_s'])} | {_fmt(s['plan_time_ms']['median'])}"
+            f" | {_fmt(s['plan_time_ms']['p95'])} | {_fmt(s['setup_ms']['median'])}"
+            f" | {sizes.get(p, {}).get('all', 0)} |"
         )
-    lines += [
+    return lines + [
         "",
-        "Plan ms: per planning call, pooled. Setup ms: median per episode of the policy's "
-        "preparation at reset (what depends on the slot alone), not counted in plan ms.",
+        "Success over feasible: over the cases whose slot admits an ISO-compliant final pose at all. "
+        "Switches and parking time: over successful episodes. Plan ms: per planning call, pooled. "
+        "Setup ms: median per episode of the policy's preparation at reset, not counted in plan ms. "
+        "ODD cells: (type, SL, SW, theta0, y0) with road widths pooled, parking in >= 95 % of their runs.",
+        "",
     ]
-    lines += [
+
+
+def _success_tables(df, planners) -> list[str]:
+    lines = [
+        "## Success per parking type",
         "",
+        "| planner | type | cases | success | feasible cases | over feasible | y0 >= 1.6 m, feasible |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    ok = df["success"].fillna(False).astype(bool)
+    feasible = df["feasible"].fillna(True).astype(bool) if "feasible" in df else pd.Series(True, index=df.index)
+    for p in planners:
+        for t in TYPES:
+            m = (df["planner"] == p) & (df["parking_type"] == t)
+            if not m.any():
+                continue
+            f = m & feasible
+            far = f & (df["y0"] >= 1.6 - 1e-9)
+            lines.append(
+                f"| {p} | {t} | {int(m.sum())} | {_pct(ok[m].mean())} | {int(f.sum())}"
+                f" | {_pct(ok[f].mean() if f.any() else None)} | {_pct(ok[far].mean() if far.any() else None)} |"
+            )
+    return lines + ["", "The paper reports success around 100 % from y0 >= 1.6 m.", ""]
+
+
+def _headline_table(df, main, baseline) -> list[str]:
+    lines = [
         f"## The paper's headline comparisons ({main} vs {baseline or 'no baseline in these results'})",
         "",
         "| measure | paper | ours |",
@@ -228,20 +166,58 @@ def write_report(df: pd.DataFrame, out: str | Path, baseline: str | None = None)
     for h in headline(df, main, baseline):
         paper = f"{h['paper']:+.1f} %" if h["relative"] else f"{h['paper']:g}"
         lines.append(f"| {h['measure']} | {paper} | {_fmt(h['ours'], h['relative'])} |")
-    lines += [
+    return lines + [
         "",
-        "Relative changes compare the two planners on the cases both ran. The paper's planning time "
-        "is a mean on an i7-9750H with Gurobi; ours is the pooled mean of every planning call here.",
+        "Relative changes compare the two planners on the cases both ran: success rate, ODD size (cells "
+        "as above), mean direction switches and parking time over each planner's successes. The paper's "
+        "planning time is a mean on an i7-9750H with Gurobi; ours is the pooled mean of every planning call.",
         "",
     ]
-    failures = df[~df["success"].fillna(False).astype(bool)]
-    if len(failures):
-        lines += ["## Failures by first failing criterion", "", "| planner | criterion | cases |", "|---|---|---|"]
-        for (p, c), n in failures.groupby(["planner", failures["failed_criterion"].fillna("none")]).size().items():
-            lines.append(f"| {p} | {c} | {n} |")
-        lines.append("")
-    lines += ["## Figures", ""]
-    lines += [f"![{f.stem}]({f.name})" for f in figs]
-    path = out / "report.md"
-    path.write_text("\n".join(lines) + "\n")
-    return path
+
+
+def _failure_table(df, planners) -> list[str]:
+    failed = df[~df["success"].fillna(False).astype(bool)]
+    if not len(failed):
+        return []
+    cause = failed["failure_cause"] if "failure_cause" in failed else pd.Series(index=failed.index, dtype=object)
+    cause = cause.fillna("(not recorded) " + failed["failed_criterion"].fillna("?"))
+    table = failed.assign(cause=cause).groupby(["planner", "cause", "parking_type"]).size().unstack(fill_value=0)
+    lines = ["## Failures by cause", "", "| planner | cause | " + " | ".join(TYPES) + " |", "|---|---|---|---|---|"]
+    for (p, c), row in table.iterrows():
+        lines.append(f"| {p} | {c} | " + " | ".join(str(int(row.get(t, 0))) for t in TYPES) + " |")
+    return lines + [
+        "",
+        "Causes (evaluation/causes.py, first match): error, collision, out_of_scene, no_iso_pose (the slot "
+        "admits no ISO pose), parked_outside_margin:<criterion> (standing inside the slot, outside that "
+        "criterion), timeout (180 s), gave_up (the planner stopped trying).",
+        "",
+    ]
+
+
+def _clearance_table(df, planners) -> list[str]:
+    if "min_clearance_m" not in df or not df["min_clearance_m"].notna().any():
+        return []
+    lines = [
+        "## Closest approach to an obstacle",
+        "",
+        "| planner | episodes | median [cm] | p5 [cm] | p1 [cm] | min [cm] | under 1 cm | under 1 cm above 0.5 m/s |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for p in planners:
+        d = df[(df["planner"] == p) & df["min_clearance_m"].notna()]
+        if not len(d):
+            continue
+        g = 100 * d["min_clearance_m"].to_numpy(float)
+        close = g < 1.0
+        fast = close & (d["speed_at_min_clearance"].to_numpy(float) > 0.5)
+        q = np.percentile(g, [50, 5, 1])
+        lines.append(
+            f"| {p} | {len(d)} | {q[0]:.1f} | {q[1]:.1f} | {q[2]:.2f} | {g.min():.2f} | {int(close.sum())}"
+            f" | {int(fast.sum())} |"
+        )
+    return lines + [
+        "",
+        "Per episode, the smallest separating-axis gap between the car's footprint and any obstacle over "
+        "every 0.01 s sub-step (a lower bound on the Euclidean distance), and the speed at that moment.",
+        "",
+    ]

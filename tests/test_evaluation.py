@@ -279,3 +279,30 @@ def test_mirror_demo_writes_its_figure_and_animation(tmp_path):
         assert gif.n_frames >= 5  # ~16 s driven, a frame every 2 s
     with pytest.raises(ValueError, match="types"):
         mirror_demo(tmp_path, ("diagonal",))
+
+
+def test_odd_cells_pool_road_widths_and_nothing_else():
+    """The paper's ODD: a cell is (type, SL, SW, theta0, y0); its runs are the road widths
+    that hold it, and it is in the ODD at >= 95 % success: 3 of 3 is in, 2 of 3 is out."""
+    from evaluation.metrics import odd_cells
+
+    rows = []
+    for rw, ok_a, ok_b in ((4.5, True, True), (4.0, True, False), (3.5, True, True)):
+        rows.append(_row("m", "parallel", ok_a, 1, 10.0, [1], k=rw, y0=1.0, road_width=rw))  # cell A: 3 of 3
+        rows.append(_row("m", "parallel", ok_b, 1, 10.0, [1], k=rw, y0=2.0, road_width=rw))  # cell B: 2 of 3
+    # Another theta0, another slot length: cells of their own, never pooled with A or B.
+    rows.append(_row("m", "parallel", True, 1, 10.0, [1], k=9, y0=1.0, theta0_deg=10.0))
+    rows.append(_row("m", "parallel", False, 1, 10.0, [1], k=8, y0=1.0, slot_length=5.1))
+    cells = odd_cells(pd.DataFrame(rows)).set_index(["theta0_deg", "slot_length", "y0"])
+    assert cells.loc[(0.0, 5.0, 1.0), "runs"] == 3 and cells.loc[(0.0, 5.0, 1.0), "in_odd"]
+    assert cells.loc[(0.0, 5.0, 2.0), "runs"] == 3 and not cells.loc[(0.0, 5.0, 2.0), "in_odd"]
+    assert cells.loc[(10.0, 5.0, 1.0), "runs"] == 1 and cells.loc[(10.0, 5.0, 1.0), "in_odd"]
+    assert cells.loc[(0.0, 5.1, 1.0), "runs"] == 1 and not cells.loc[(0.0, 5.1, 1.0), "in_odd"]
+    assert odd_size(pd.DataFrame(rows))["m"] == {"parallel": 2, "reverse": 0, "angle": 0, "all": 2}
+
+
+def test_success_over_feasible_cases():
+    df = hand_table().assign(feasible=[True, False, True, True, True, False, True, True])
+    s = summary(df, "mirror")
+    assert s["success_rate"]["parallel"] == 0.5 and s["success_rate_feasible"]["parallel"] == 1.0
+    assert s["success_rate_feasible"]["all"] == 1.0
