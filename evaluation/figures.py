@@ -103,23 +103,23 @@ def _edges(v: np.ndarray) -> np.ndarray:
 
 
 def fig_clearance(df, planners, out: Path) -> Path:
-    """Each episode's closest approach to an obstacle, against the speed at that moment."""
+    """Each episode's closest approach to an obstacle, and how fast the car was going there."""
     plt = _plt()
     fig, axes = plt.subplots(1, 2, figsize=(11, 3.5))
+    bins = np.arange(0, 21)  # [cm]
     for p in planners:
         d = df[(df["planner"] == p) & df["min_clearance_m"].notna()]
         gap = 100 * d["min_clearance_m"].clip(lower=0).to_numpy(float)
-        axes[0].hist(gap, bins=np.linspace(0, 50, 51), alpha=0.6, label=p)
-        h, xe, ye = np.histogram2d(
-            gap, d["speed_at_min_clearance"], bins=[np.linspace(0, 50, 26), np.linspace(0, 3, 16)]
-        )
-        axes[1].contour(0.5 * (xe[1:] + xe[:-1]), 0.5 * (ye[1:] + ye[:-1]), h.T, levels=4, alpha=0.8)
-        axes[1].plot([], [], label=p)
+        speed = d["speed_at_min_clearance"].to_numpy(float)
+        axes[0].hist(gap, bins=np.linspace(0, 50, 51), histtype="step", lw=1.5, label=p)
+        which = np.digitize(gap, bins) - 1
+        med = [np.median(speed[which == k]) if (which == k).any() else np.nan for k in range(len(bins) - 1)]
+        axes[1].plot(bins[:-1] + 0.5, med, "o-", ms=3, label=p)
     axes[0].set_xlabel("minimum clearance in the episode [cm]")
     axes[0].set_ylabel("episodes")
     axes[0].legend()
-    axes[1].set_xlabel("minimum clearance [cm]")
-    axes[1].set_ylabel("speed there [m/s]")
+    axes[1].set_xlabel("minimum clearance [cm] (1 cm bins)")
+    axes[1].set_ylabel("median speed there [m/s]")
     axes[1].legend()
     fig.suptitle("Safety margin: closest approach to any obstacle (separating-axis gap)")
     return _save(fig, out / "clearance.png")
