@@ -78,6 +78,8 @@ def summary(df: pd.DataFrame, planner: str | None = None) -> dict[str, Any]:
         "setup_ms": {"median": float(setup.median()) if len(setup) else None},  # per episode, at reset
         "episode_wall_s": {"median": float(wall.median()) if len(wall) else None},
         "errors": int((df.get("planner_status") == "error").sum()) if len(df) else 0,
+        # Calls where a wall-clock safety net (not the work budget) ended the search.
+        "safety_net_calls": int(df["safety_net_calls"].fillna(0).sum()) if "safety_net_calls" in df else None,
     }
 
 

@@ -123,7 +123,11 @@ def _summary_table(df, planners, sizes) -> list[str]:
             f" | {_fmt(s['plan_time_ms']['p95'])} | {_fmt(s['setup_ms']['median'])}"
             f" | {sizes.get(p, {}).get('all', 0)} |"
         )
+    nets = {p: summary(df, p)["safety_net_calls"] for p in planners}
+    fired = ", ".join(f"{p} {n}" for p, n in nets.items() if n is not None)
     return lines + [
+        "",
+        f"Planning calls ended by a wall-clock safety net rather than their work budget: {fired or 'not recorded'}.",
         "",
         "Success over feasible: over the cases whose slot admits an ISO-compliant final pose at all. "
         "Switches and parking time: over successful episodes. Plan ms: per planning call, pooled. "

@@ -92,6 +92,12 @@ def run_case(planner: str, sc: Scenario) -> dict[str, Any]:
             plan_time_median_ms=float(np.median(times)) if times else math.nan,
             plan_time_max_ms=float(np.max(times)) if times else math.nan,
             plan_times_ms=[round(t, 3) for t in times],
+            # Work per call, which (unlike time) any machine repeats: iterations (SCP rounds,
+            # search expansions), QP solves, nodes (branch and bound, search).
+            plan_iterations=[int(s.iterations) for s in policy.stats],
+            plan_qp_solves=[int(s.qp_solves) for s in policy.stats],
+            plan_nodes=[int(s.nodes) for s in policy.stats],
+            safety_net_calls=sum(bool(s.detail.get("safety_net")) for s in policy.stats),
             setup_ms=1e3 * float(getattr(policy, "setup_time_s", 0.0)),
             planner_status=policy.status,
             error=None,

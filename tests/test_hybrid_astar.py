@@ -147,10 +147,10 @@ def test_easy_cases_park(case_id):
 
 def test_budget_exhaustion_is_a_status_not_an_exception():
     g = Scenario.from_case_id("parallel_rw3.50_sl4.82_sw2.50_th+0_y1.70").build()
-    path, stats = HybridAStar(g, HybridAStarConfig(time_budget_s=1e-4)).plan((g.start.x, g.start.y, g.start.theta))
+    path, stats = HybridAStar(g, HybridAStarConfig(max_expansions=1)).plan((g.start.x, g.start.y, g.start.theta))
     assert path is None and stats.status == "budget"
     env = gym.make("MirrorPark-v0").unwrapped
-    policy = HybridAStarPolicy(HybridAStarConfig(time_budget_s=1e-4))
+    policy = HybridAStarPolicy(HybridAStarConfig(max_expansions=1))
     info, steps = run_episode(env, policy, "parallel_rw3.50_sl4.82_sw2.50_th+0_y1.70")
     assert policy.gave_up and policy.status == "budget" and steps == 1
     assert not info["is_success"] and not info["collision"]
@@ -159,7 +159,9 @@ def test_budget_exhaustion_is_a_status_not_an_exception():
 def test_bad_config_is_rejected_naming_the_field():
     with pytest.raises(ValueError, match=r"n_steer: must be odd"):
         HybridAStarConfig(n_steer=4)
-    with pytest.raises(ValueError, match=r"time_budget_s\n.*finite number"):
-        HybridAStarConfig(time_budget_s=float("nan"))
+    with pytest.raises(ValueError, match=r"wall_clock_limit_s\n.*finite number"):
+        HybridAStarConfig(wall_clock_limit_s=float("nan"))
+    with pytest.raises(ValueError, match=r"max_expansions\n.*greater than or equal to 1"):
+        HybridAStarConfig(max_expansions=0)
     with pytest.raises(ValueError, match=r"steer_fraction\n.*less than or equal to 1"):
         HybridAStarConfig(steer_fraction=1.5)

@@ -57,7 +57,8 @@ class HybridAStarConfig(StrictModel):
     goal_heading_deg: float = Field(2.0, ge=0, le=45)
     window_margin: float = Field(10.0, gt=0, le=100)  # search window beyond the slot and start
     start_relief: float = Field(1.0, gt=0, le=10)  # radius about a start closer than clearance to an obstacle
-    time_budget_s: float = Field(10.0, gt=0, le=3600)
+    max_expansions: int = Field(32_000, ge=1)  # the budget, in work: node expansions per call (~10 s here)
+    wall_clock_limit_s: float = Field(120.0, gt=0, le=3600)  # a safety net only; a call where it fires says so
 
     @model_validator(mode="after")
     def _consistent(self) -> HybridAStarConfig:
@@ -193,8 +194,9 @@ class HybridAStar:
         forward from the start into the ISO goal set. Paths are reversible, so the
         backward one is driven in reverse order with the gear costs swapped.
         Status: "ok", "start_in_collision", "no_goal" (no pose in the slot passes the ISO
-        check), "no_path" (the reachable space is exhausted) or "budget" (``time_budget_s``
-        ran out).
+        check), "no_path" (the reachable space is exhausted), "budget" (``max_expansions``
+        spent: the same on any machine) or "wall_clock" (the safety net fired; the call's
+        ``detail["safety_net"]`` is True).
         """
         t0 = time.perf_counter()
         cfg = self.cfg
@@ -207,6 +209,7 @@ class HybridAStar:
                 "switches": path.switches if path is not None else -1,
                 "length": path.length if path is not None else math.nan,
                 "search": direction,
+                "safety_net": status == "wall_clock",
             }
             return path, PlanStats(
                 time.perf_counter() - t0,
@@ -223,19 +226,21 @@ class HybridAStar:
             return done(None, "start_in_collision")
         if not self.goal_exists:
             return done(None, "no_goal")
-        deadline = t0 + cfg.backward_share * cfg.time_budget_s
-        poses, status, cost = self._search(self.goal, start, backward=True, deadline=deadline, counts=counts)
+        deadline = t0 + cfg.wall_clock_limit_s
+        limit = max(1, int(cfg.backward_share * cfg.max_expansions))
+        poses, status, cost = self._search(self.goal, start, True, limit, deadline, counts)
         if poses is not None:
             return done(Path.from_poses(poses[::-1]), "ok", cost, "backward")
-        poses, status, cost = self._search(
-            start, self.goal, backward=False, deadline=t0 + cfg.time_budget_s, counts=counts
-        )
+        if status == "wall_clock":
+            return done(None, status)
+        poses, status, cost = self._search(start, self.goal, False, cfg.max_expansions, deadline, counts)
         if poses is not None:
             return done(Path.from_poses(poses), "ok", cost, "forward")
         return done(None, status)
 
-    def _search(self, origin, goal, backward: bool, deadline: float, counts: dict[str, int]):
-        """One A* search from ``origin``; (poses or None, status, cost).
+    def _search(self, origin, goal, backward: bool, limit: int, deadline: float, counts: dict[str, int]):
+        """One A* search from ``origin``, until the call's expansions reach ``limit``; (poses or
+        None, status, cost).
 
         Forward, a node in the ISO goal set also ends it; backward, the gear costs are
         swapped, since the path will be driven the other way.
@@ -254,8 +259,11 @@ class HybridAStar:
         offsets, gears, steers = self._primitives
         status = "no_path"
         while open_heap:
-            if time.perf_counter() > deadline:
+            if counts["expansions"] >= limit:
                 status = "budget"
+                break
+            if time.perf_counter() > deadline:
+                status = "wall_clock"
                 break
             _, _, i = heapq.heappop(open_heap)
             node = nodes[i]

@@ -44,7 +44,7 @@ class MirrorPlannerConfig(StrictModel):
     qp_tolerance: float = Field(1e-4, gt=0, lt=1)  # piqp's absolute residual and duality-gap tolerance
     seed_swings: tuple[float, ...] = (-0.8, -0.4, 0.4, 0.8)  # [rad] heading excursions tried as seeds
     refine_candidates: int = Field(2, ge=1)  # candidates refined by SCP after the seed search
-    time_limit_s: float = Field(0.5, gt=0)  # branch and bound's wall-clock safety net per MIQP
+    time_limit_s: float = Field(5.0, gt=0)  # branch and bound's wall-clock safety net per MIQP (recorded)
     guide: bool = True  # seed each plan from a geometric guide (guide.py); SCP only
     guide_iterations: int = Field(2, ge=1, le=1000)  # SCP rounds on a guided candidate
     seed_speed: float = Field(1.5, gt=0, le=3)  # [m/s] cruise speed of the guided seed rollout

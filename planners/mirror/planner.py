@@ -123,6 +123,7 @@ class MirrorPlanner:
             status = "ok"
             if plan is None and st.get("partial") is not None:  # go along the guide as far as is safe
                 plan, status = st["partial"], "partial"
+            detail["safety_net"] = st.get("safety_net", False)
         if plan is None:
             status = "infeasible" if guide is not None else "no_guide"
             self.last_stats = PlanStats(time.perf_counter() - t0, status, detail=detail)
@@ -158,6 +159,7 @@ class MirrorPlanner:
         stay = self.checks.merit(np.repeat(xi0[None], self.cfg.model_substeps * self.N + 1, axis=0), goal, theta_t)
         best = partial = None
         totals = {"iterations": 0, "qp_solves": 0, "nodes": 0}
+        net = False
         tried = []
         for n, (cand, seed) in enumerate(seeds):
             if n >= self.cfg.refine_candidates and best is not None and best.cost < 0.9 * stay:
@@ -165,6 +167,7 @@ class MirrorPlanner:
             plan, st = self.solve_candidate(xi0, cand, goal, start, line, seed)
             for k in totals:
                 totals[k] += st[k]
+            net = net or st.get("safety_net", False)
             tried.append((cand, None if plan is None else round(plan.cost, 3), st["status"]))
             if plan is not None and plan.collision_free and (best is None or plan.cost < best.cost):
                 best = plan
@@ -181,7 +184,7 @@ class MirrorPlanner:
             totals["qp_solves"],
             totals["nodes"],
             best.cost if best else math.nan,
-            {"candidates": tried, "stay_cost": stay, "guided": False},
+            {"candidates": tried, "stay_cost": stay, "guided": False, "safety_net": net},
         )
         self.last_stats = stats
         return replace(best, stats=stats) if best is not None else None
@@ -295,6 +298,7 @@ class MirrorPlanner:
             res = self.miqp.solve(qp, disj, active, preferred)
             st["qp_solves"] += res.qp_solves
             st["nodes"] += res.nodes
+            st["safety_net"] = st.get("safety_net", False) or res.status == "time_limit"
             return res.x
         st["qp_solves"] += 1
         return self.qp_backend.solve(qp).x
