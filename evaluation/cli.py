@@ -101,17 +101,18 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def cmd_main(args: argparse.Namespace) -> int:
-    """The main job: a smoke evaluation of every available planner, then the report."""
-    from .registry import available
+    """The main job: a smoke evaluation of the main planners (registry.MAIN), then the report."""
+    from .registry import MAIN
     from .report import write_report
     from .runner import evaluate
     from .store import read_results
 
     scenarios = _cases(args)
     out = Path(args.out)
-    for p in available() if args.planners is None else args.planners:
+    planners = list(MAIN) if args.planners is None else args.planners
+    for p in planners:
         evaluate(p, scenarios, out / p, workers=args.workers, progress=not args.quiet)
-    df = read_results([out / p for p in (available() if args.planners is None else args.planners)])
+    df = read_results([out / p for p in planners])
     path = write_report(df, out / "report")
     print(f"wrote {path}")
     return 0
@@ -120,14 +121,14 @@ def cmd_main(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from .bench import run
     from .cases import from_sample
-    from .registry import available
+    from .registry import MAIN
 
     smoke = [sc.case_id for sc in from_sample("smoke")]
     n = min(args.cases, len(smoke))
     # The middle of each of n equal blocks: the smoke sample is ordered by type and slot
     # size, so its first cases are the tightest slots (mostly hopeless).
     cases = [smoke[(2 * i + 1) * len(smoke) // (2 * n)] for i in range(n)]
-    res = run(args.planners or available(), cases, env_steps=args.env_steps)
+    res = run(args.planners or list(MAIN), cases, env_steps=args.env_steps)
     if args.json:
         print(json.dumps(res))
     else:
@@ -211,7 +212,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--baseline", default=None, help="planner to compare against (default: hybrid-astar if present)")
     r.set_defaults(func=cmd_report)
 
-    m = sub.add_parser("main", help="the main job: smoke-evaluate every available planner and write the report")
+    m = sub.add_parser(
+        "main",
+        help="the main job: smoke-evaluate mirror, hybrid-astar and guide-only (or --planners) and write the report",
+    )
     case_args(m)
     m.add_argument("--planners", nargs="+", default=None)
     m.add_argument("--out", default="results/main")

@@ -20,6 +20,19 @@ def _mirror_paper() -> Policy:
     return MirrorPolicy(MirrorPlannerConfig(linearisation="paper"))
 
 
+def _mirror_cold() -> Policy:
+    from planners.mirror.config import MirrorPlannerConfig
+    from planners.mirror.policy import MirrorPolicy
+
+    return MirrorPolicy(MirrorPlannerConfig(guide=False))
+
+
+def _guide_only() -> Policy:
+    from planners.mirror.guide_policy import GuideOnlyPolicy
+
+    return GuideOnlyPolicy()
+
+
 def _hybrid_astar() -> Policy:
     from planners.hybrid_astar.policy import HybridAStarPolicy
 
@@ -29,8 +42,15 @@ def _hybrid_astar() -> Policy:
 PLANNERS: dict[str, Callable[[], Policy]] = {
     "mirror": _mirror,  # SCP re-linearisation (the default)
     "mirror-paper": _mirror_paper,  # the paper's fixed-angle linearisation, for comparison
+    "mirror-cold": _mirror_cold,  # the default without the geometric guide (multi-start seeds)
+    "guide-only": _guide_only,  # the geometric guide tracked, no QP (the ablation)
     "hybrid-astar": _hybrid_astar,  # the search-based baseline
 }
+
+
+# The main job's and the benchmark's default set: the paper's comparison (the mirror planner
+# against the search-based baseline) and the guide alone, the ablation that runs in seconds.
+MAIN = ("mirror", "hybrid-astar", "guide-only")
 
 
 def available() -> list[str]:
