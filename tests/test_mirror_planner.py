@@ -391,3 +391,36 @@ def test_obstacle_rows_are_one_row_per_alternative_exact_at_the_reference():
         if np.hypot(*(q - centre)) <= 0.5 * P.length + 1.5:
             expected += [float((R @ nb) @ (q - P0)) - off - obs.margin for nb, off in obs.car_faces]
     np.testing.assert_allclose(value[1:], expected, atol=1e-9)
+
+
+def test_the_papers_linearised_model_against_a_step_by_hand():
+    """Eqs. (22)-(29) about the linearising angle A = 0.25 rad with nominal speed 1 m/s, one
+    0.1 s step from xi = (x 1, y 2, theta 0.3, v 1.2, a 0.5, delta 0.1), u = (0.8, -0.2):
+
+    x' = x + dt (v cos A - v_n sin A (theta - A))   (Eq. 22 with gamma_1 of Eq. 26; the
+    y' = y + dt (v sin A + v_n cos A (theta - A))    theta term to first order about v_n)
+    theta' = theta + dt v_n delta / l               (Eq. 24, v_n as printed)
+    v' = v + dt a;  a' = a + dt (a_c - a) / tau_a;  delta' = delta + dt (d_c - delta) / tau_d
+    """
+    from planners.mirror.model import PlanningModel
+
+    A_, B_, c_ = PlanningModel(P, 0.1, 2).paper_linearisation(3, 0.25, 1.0)
+    xi, u = np.array([1.0, 2.0, 0.3, 1.2, 0.5, 0.1]), np.array([0.8, -0.2])
+    nxt = A_[1] @ xi + B_[1] @ u + c_[1]
+    ca, sa = 0.9689124217106447, 0.24740395925452294  # cos 0.25, sin 0.25
+    by_hand = [
+        1.0 + 0.1 * (1.2 * ca - 1.0 * sa * 0.05),
+        2.0 + 0.1 * (1.2 * sa + 1.0 * ca * 0.05),
+        0.3 + 0.1 * 1.0 * 0.1 / 2.5,
+        1.2 + 0.1 * 0.5,
+        0.5 + 0.1 * (0.8 - 0.5) / 0.3,
+        0.1 + 0.1 * (-0.2 - 0.1) / 0.1,
+    ]
+    np.testing.assert_allclose(nxt, by_hand, atol=1e-12)
+    # At the nominal speed the completed form is the paper's bilinear gamma_1 v, gamma_2 v exactly.
+    xi[3] = 1.0
+    g1 = -0.3 * sa + ca + 0.25 * sa  # Eq. (26)
+    g2 = 0.3 * ca + sa - 0.25 * ca  # Eq. (27)
+    nxt = A_[0] @ xi + B_[0] @ u + c_[0]
+    assert nxt[0] == pytest.approx(1.0 + 1.0 * g1 * 0.1, abs=1e-12)
+    assert nxt[1] == pytest.approx(2.0 + 1.0 * g2 * 0.1, abs=1e-12)
