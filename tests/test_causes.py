@@ -3,8 +3,6 @@ holds the store; here episodes run end to end through ``run_case``)."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
@@ -92,35 +90,10 @@ def test_a_success_has_no_cause_and_the_clearance_is_recorded(monkeypatch):
     assert row["speed_at_min_clearance"] >= 0.0
 
 
-def test_parked_outside_a_margin_names_the_smallest_margin_and_the_shortfall():
-    cause, amount = failure_cause(
+def _cause(**over):
+    """``failure_cause`` of an episode that ended standing in the slot, feasible, after 40 s."""
+    ended = dict(
         success=False,
-        error=False,
-        collision=False,
-        out_of_scene=False,
-        feasible=True,
-        inside_slot=True,
-        stopped=True,
-        heading_error_deg=1.0,
-        margins={"M_fl": 0.3, "M_fr": 0.06, "M_rl": 0.3, "M_rr": 0.08, "M_e": 0.5},
-        parking_time_s=40.0,
-    )
-    assert cause == "parked_outside_margin:M_fr" and amount == pytest.approx(0.04)
-    cause, amount = failure_cause(
-        success=False,
-        error=False,
-        collision=False,
-        out_of_scene=False,
-        feasible=True,
-        inside_slot=True,
-        stopped=True,
-        heading_error_deg=0.0,
-        margins={"M_f": 0.2, "M_r": -0.0, "M_e": 0.4},
-        parking_time_s=40.0,
-    )
-    assert cause == "parked_outside_margin:M_r" and amount == pytest.approx(0.0)
-    assert failure_cause(
-        success=True,
         error=False,
         collision=False,
         out_of_scene=False,
@@ -129,8 +102,20 @@ def test_parked_outside_a_margin_names_the_smallest_margin_and_the_shortfall():
         stopped=True,
         heading_error_deg=0.0,
         margins={},
-        parking_time_s=10.0,
-    ) == (None, pytest.approx(math.nan, nan_ok=True))
+        parking_time_s=40.0,
+    )
+    return failure_cause(**{**ended, **over})
+
+
+def test_parked_outside_a_margin_names_the_smallest_margin_and_the_shortfall():
+    margins = {"M_fl": 0.3, "M_fr": 0.06, "M_rl": 0.3, "M_rr": 0.08, "M_e": 0.5}
+    cause, amount = _cause(heading_error_deg=1.0, margins=margins)
+    assert cause == "parked_outside_margin:M_fr" and amount == pytest.approx(0.04)
+    cause, amount = _cause(margins={"M_f": 0.2, "M_r": -0.0, "M_e": 0.4})  # parallel: > 0 needed
+    assert cause == "parked_outside_margin:M_r" and amount == pytest.approx(0.0)
+    assert _cause(success=True)[0] is None
+    assert _cause(inside_slot=False)[0] == "gave_up"
+    assert _cause(inside_slot=False, parking_time_s=180.0)[0] == "timeout"
 
 
 def test_causes_cover_every_name():

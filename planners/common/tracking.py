@@ -1,0 +1,83 @@
+"""A policy that plans a path and tracks it: the shape shared by the search-based
+baseline and the guide-only ablation.
+
+A path is planned when the episode starts and again, from where the car stands, when
+tracking has drifted beyond the tracker's tolerance or the path has been driven to its
+end without the ISO check passing. Before a replan the car is brought to a stand. A
+failed plan stops the car for good and says why in the last ``PlanStats``; it never raises.
+"""
+
+from __future__ import annotations
+
+from abc import abstractmethod
+from typing import Any
+
+import numpy as np
+
+from mirrorpark_env.scenario import ScenarioGeometry
+from mirrorpark_env.vehicle import VehicleState, to_action
+
+from ..base import PlanStats, Policy
+from .path import Path
+from .tracker import PathTracker, TrackerConfig, hold_command
+
+
+class TrackingPolicy(Policy):
+    """Subclasses say how to ``prepare`` for a scene and how to ``find_path`` from a pose."""
+
+    def __init__(self, tracker: TrackerConfig | None = None, max_plans: int = 6) -> None:
+        super().__init__()
+        self.tracker_config = tracker or TrackerConfig()
+        self.max_plans = max_plans
+        self.params = None
+
+    @abstractmethod
+    def prepare(self, geometry: ScenarioGeometry) -> None:
+        """Build what the scene needs (called by ``reset``)."""
+
+    @abstractmethod
+    def find_path(self, pose: tuple[float, float, float]) -> tuple[Path | None, PlanStats]:
+        """A path from ``pose`` (None on failure) and the call's statistics."""
+
+    def reset(self, geometry: ScenarioGeometry) -> None:
+        self.prepare(geometry)
+        self.params = geometry.vehicle
+        self.stats = []
+        self.paths: list[Path] = []
+        self.tracker: PathTracker | None = None
+        self.gave_up = False
+        self._replan_when_stopped = True
+
+    def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
+        if self.params is None:
+            raise RuntimeError(f"{type(self).__name__}: call reset(geometry) first")
+        s: VehicleState = info["vehicle_state"]
+        tr = self.tracker
+        if tr is not None and (tr.drifted or tr.done) and not info.get("is_success", False):
+            self._replan_when_stopped = True
+            self.tracker = tr = None
+        if tr is None:
+            if self.gave_up or not self._replan_when_stopped or abs(s.v) > 0.02:
+                return self._brake(s)
+            self._plan(s)
+            tr = self.tracker
+            if tr is None:
+                return self._brake(s)
+        a, d = tr.command(s)
+        return to_action(self.params, a, d)
+
+    def _plan(self, s: VehicleState) -> None:
+        self._replan_when_stopped = False
+        if len(self.stats) >= self.max_plans:
+            self.gave_up = True
+            return
+        path, stats = self.find_path((s.x, s.y, s.theta))
+        self.stats.append(stats)
+        if path is None:
+            self.gave_up = True
+            return
+        self.paths.append(path)
+        self.tracker = PathTracker(path, self.params, self.tracker_config)
+
+    def _brake(self, s: VehicleState) -> np.ndarray:
+        return to_action(self.params, hold_command(self.params, s), s.delta)
