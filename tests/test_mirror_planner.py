@@ -424,3 +424,31 @@ def test_the_papers_linearised_model_against_a_step_by_hand():
     nxt = A_[0] @ xi + B_[0] @ u + c_[0]
     assert nxt[0] == pytest.approx(1.0 + 1.0 * g1 * 0.1, abs=1e-12)
     assert nxt[1] == pytest.approx(2.0 + 1.0 * g2 * 0.1, abs=1e-12)
+
+
+def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_meets(monkeypatch):
+    """The MIQP of a real planning call (a reverse start at 40 deg: 6 disjunctions, 256
+    assignments), solved by branch and bound with the planner's own backend and node
+    budget, has the optimum that exhaustive enumeration finds."""
+    import dataclasses
+
+    from planners.mirror import solvers
+
+    captured = []
+    solve = solvers.BranchAndBound.solve
+
+    def spy(self, qp, disj, active, preferred=None):
+        if not captured:
+            copy = dataclasses.replace(qp, h_l=qp.h_l.copy(), c=qp.c.copy())
+            captured.append((self, copy, list(disj), active.copy(), list(preferred or [])))
+        return solve(self, qp, disj, active, preferred)
+
+    monkeypatch.setattr(solvers.BranchAndBound, "solve", spy)
+    env = gym.make("MirrorPark-v0")
+    run_episode(env, MirrorPolicy(), "reverse_rw6.00_sl4.82_sw2.57_th+40_y1.10")
+    bb, qp, disj, active, preferred = captured[0]
+    assert bb.node_limit == MirrorPolicy().config.node_limit and len(disj) >= 5
+    res = solve(bb, qp, disj, active, preferred)
+    ref = Enumeration(bb.qp_backend).solve(qp, disj, active)
+    assert res.status == "solved" and res.nodes < ref.qp_solves
+    assert res.obj == pytest.approx(ref.obj, rel=1e-4, abs=1e-6)

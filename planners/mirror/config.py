@@ -39,7 +39,7 @@ class MirrorPlannerConfig(StrictModel):
     start_relief: float = Field(0.5, gt=0, le=10)  # [m] around a start closer than a margin, only its own gap ...
     start_slack: float = Field(0.0005, ge=0, le=0.1)  # [m] ... less this much is kept
     mirror_margin: float = Field(1.1, ge=1, le=3)  # reverse / angle: l_mi >= margin * r_min (1 - cos psi)
-    node_limit: int = Field(3, ge=1, le=100_000)  # branch-and-bound nodes per MIQP
+    node_limit: int = Field(100, ge=1, le=100_000)  # branch-and-bound nodes per MIQP (a work budget)
     kkt_solver: Literal["sparse_ldlt", "sparse_multistage", "auto"] = "auto"  # piqp's (solvers.PiqpQP)
     qp_tolerance: float = Field(1e-4, gt=0, lt=1)  # piqp's absolute residual and duality-gap tolerance
     seed_swings: tuple[float, ...] = (-0.8, -0.4, 0.4, 0.8)  # [rad] heading excursions tried as seeds
