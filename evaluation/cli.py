@@ -91,6 +91,14 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_collect(args: argparse.Namespace) -> int:
+    from .collect import collect
+
+    path = collect(args.planner, _cases(args), Path(args.out), workers=args.workers, progress=not args.quiet)
+    print(f"wrote {path} (load it with minari.MinariDataset('{path / 'data'}'))")
+    return 0
+
+
 def cmd_report(args: argparse.Namespace) -> int:
     from .report import write_report
     from .store import read_results
@@ -205,6 +213,12 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--out", default=None, help="results folder (default: results/<planner>-<sample>)")
     e.add_argument("--json", action="store_true", help="end with one JSON summary line")
     e.set_defaults(func=cmd_evaluate)
+
+    c = sub.add_parser("collect", help="record a planner's episodes as a Minari dataset (demonstrations); resumable")
+    c.add_argument("--planner", required=True, help="a planner name, as for evaluate")
+    case_args(c)
+    c.add_argument("--out", required=True, help="folder for the episodes and the dataset")
+    c.set_defaults(func=cmd_collect)
 
     r = sub.add_parser("report", help="write a Markdown report with figures from result folders or files")
     r.add_argument("results", nargs="+", help="results folders, .parquet or .jsonl files")

@@ -28,7 +28,7 @@ MARGINS = ("M_f", "M_r", "M_e", "M_fl", "M_fr", "M_rl", "M_rr")
 _ENV = None  # one environment per worker process
 
 
-def _env():
+def worker_env():
     global _ENV
     if _ENV is None:
         import gymnasium as gym
@@ -77,7 +77,7 @@ def run_case(planner: str, sc: Scenario) -> dict[str, Any]:
     try:
         row.update(case_fields(sc))
         policy = make_policy(planner)
-        info, steps = run_episode(_env(), policy, sc)
+        info, steps = run_episode(worker_env(), policy, sc)
         times = [1e3 * s.wall_time_s for s in policy.stats]
         row.update(
             success=bool(info["is_success"]),
@@ -148,7 +148,7 @@ def evaluate(
     store = ResultStore(out)
     done = store.done()
     todo = [sc for sc in unique(scenarios)[0] if (planner, sc.case_id) not in done]
-    bar = _progress(len(todo), f"{planner}", progress, initial=0)
+    bar = progress_bar(len(todo), f"{planner}", progress, initial=0)
     stored = 0
 
     def keep(row: dict[str, Any]) -> None:
@@ -164,7 +164,7 @@ def evaluate(
             for sc in todo:
                 keep(run_case(planner, sc))
         else:
-            _run_pool(planner, todo, keep, workers)
+            run_parallel(_run_case_tuple, [(planner, sc) for sc in todo], keep, workers)
     except KeyboardInterrupt:
         bar.close()
         store.compact()
@@ -185,13 +185,15 @@ def _ignore_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _run_pool(planner: str, todo: list[Scenario], keep, workers: int) -> None:
+def run_parallel(fn, items: list, keep, workers: int) -> None:
+    """``keep(fn(item))`` for every item, in ``workers`` processes, in the order they finish.
+    ``fn`` must be a module-level function (it is pickled for the workers)."""
     import multiprocessing as mp
 
     ctx = mp.get_context("fork" if hasattr(os, "fork") else "spawn")
     with ctx.Pool(workers, initializer=_ignore_sigint, maxtasksperchild=200) as pool:
-        for row in pool.imap_unordered(_run_case_tuple, ((planner, sc) for sc in todo), chunksize=1):
-            keep(row)
+        for out in pool.imap_unordered(fn, items, chunksize=1):
+            keep(out)
 
 
 def _run_ray(planner: str, todo: list[Scenario], keep, address: str | None, workers: int) -> None:
@@ -230,7 +232,7 @@ class _NoBar:
         pass
 
 
-def _progress(total: int, desc: str, enabled: bool, initial: int = 0):
+def progress_bar(total: int, desc: str, enabled: bool, initial: int = 0):
     if not enabled:
         return _NoBar()
     from tqdm import tqdm

@@ -60,20 +60,30 @@ def run_episode(
     seed: int | None = None,
     max_steps: int = 100_000,
     trace: list[dict] | None = None,
+    record: list[tuple] | None = None,
 ):
     """Roll ``policy`` out in ``env`` for one episode; return (last info, steps).
-    ``trace``, if given, receives the info of the reset and of every step."""
+
+    ``trace``, if given, receives the info of the reset and of every step; ``record`` the
+    reset's (obs, info) and then every step's (action, obs, reward, terminated, truncated,
+    info). An episode the policy gives up ends once the car stands, as truncated."""
     options = {"scenario": scenario} if scenario is not None else None
     obs, info = env.reset(seed=seed, options=options)
     policy.reset(info["geometry"])
     if trace is not None:
         trace.append(info)
+    if record is not None:
+        record.append((obs, info))
     steps = 0
     while steps < max_steps:
-        obs, _, terminated, truncated, info = env.step(policy.act(obs, info))
+        action = policy.act(obs, info)
+        obs, reward, terminated, truncated, info = env.step(action)
         steps += 1
         if trace is not None:
             trace.append(info)
-        if terminated or truncated or (policy.gave_up and info["stopped"]):
+        stop = terminated or truncated or (policy.gave_up and info["stopped"])
+        if record is not None:
+            record.append((action, obs, reward, terminated, truncated or (stop and not terminated), info))
+        if stop:
             break
     return info, steps
