@@ -14,7 +14,7 @@ from fixed_cases import EASY_CASES
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario, VehicleParams
 from planners.base import run_episode
-from planners.common.clearance import gaps
+from planners.common.clearance import START_RELIEF, gaps
 from planners.mirror.frames import FLIP, planned_controls, to_planned
 from planners.mirror.mirror_line import (
     mirror_line,
@@ -346,7 +346,7 @@ def test_a_car_at_the_kerb_may_leave_it_closer_than_the_gap():
     g, search, guide = _guide_from_start(case)
     assert guide is not None
     poses = guide.path.poses
-    near = np.hypot(poses[:, 0] - poses[0, 0], poses[:, 1] - poses[0, 1]) < search.cfg.start_relief
+    near = np.hypot(poses[:, 0] - poses[0, 0], poses[:, 1] - poses[0, 1]) < START_RELIEF
     assert _shapely_gap(g, poses[1:][near[1:]]) >= search.cfg.start_gap - 1e-6
     assert _shapely_gap(g, poses[~near]) >= search.cfg.gap - 1e-6
 
@@ -427,8 +427,9 @@ def test_the_papers_linearised_model_against_a_step_by_hand():
 
 
 def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_meets(monkeypatch):
-    """The MIQP of a real planning call (a reverse start at 40 deg: 6 disjunctions, 256
-    assignments), solved by branch and bound with the planner's own backend and node
+    """The MIQP of a real planning call (an angle start at -30 deg), cut down to as many of
+    its disjunctions as enumeration can take (<= 4,096 assignments; the rows of the others
+    stay switched off), solved by branch and bound with the planner's own backend and node
     budget, has the optimum that exhaustive enumeration finds."""
     import dataclasses
 
@@ -444,10 +445,16 @@ def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_me
         return solve(self, qp, disj, active, preferred)
 
     monkeypatch.setattr(solvers.BranchAndBound, "solve", spy)
-    env = gym.make("MirrorPark-v0")
-    run_episode(env, MirrorPolicy(), "reverse_rw6.00_sl4.82_sw2.57_th+40_y1.10")
+    run_episode(gym.make("MirrorPark-v0"), MirrorPolicy(), "angle_rw4.50_sl4.82_sw2.92_th-30_y2.70")
+    assert captured, "the planner met no disjunctive MIQP"
     bb, qp, disj, active, preferred = captured[0]
-    assert bb.node_limit == MirrorPolicy().config.node_limit and len(disj) >= 5
+    keep = []
+    for k, d in enumerate(disj):
+        if math.prod(len(disj[j].rows) for j in keep) * len(d.rows) > 4096:
+            break
+        keep.append(k)
+    disj, preferred = [disj[k] for k in keep], [preferred[k] for k in keep]
+    assert len(disj) >= 5 and bb.node_limit == MirrorPolicy().config.node_limit
     res = solve(bb, qp, disj, active, preferred)
     ref = Enumeration(bb.qp_backend).solve(qp, disj, active)
     assert res.status == "solved" and res.nodes < ref.qp_solves

@@ -14,6 +14,9 @@ import numpy as np
 
 from mirrorpark_env.geometry import FootprintChecker
 
+START_RELIEF = 1.0  # [m] around a start closer than a planner's gap, only the start's own gap is kept ...
+START_SLACK = 0.0005  # [m] ... less this much
+
 
 def gaps(checker: FootprintChecker, poses: np.ndarray) -> np.ndarray:
     """Lower bound on each pose's distance to the nearest obstacle (< 0: overlap)."""
@@ -25,9 +28,9 @@ def required_gap(
     start_xy,
     start_gap: float,
     need: float,
-    radius: float,
+    radius: float = START_RELIEF,
     floor: float = math.inf,
-    slack: float = 0.0,
+    slack: float = START_SLACK,
 ) -> np.ndarray | float:
     """Gap each of ``poses`` must keep: ``need``, but within ``radius`` of the start (at
     ``start_xy``, ``start_gap`` from the nearest obstacle) only

@@ -56,7 +56,6 @@ class HybridAStarConfig(StrictModel):
     goal_margin: float = Field(0.05, ge=0, le=1)  # ISO margins plus this, for the goal set
     goal_heading_deg: float = Field(2.0, ge=0, le=45)
     window_margin: float = Field(10.0, gt=0, le=100)  # search window beyond the slot and start
-    start_relief: float = Field(1.0, gt=0, le=10)  # radius about a start closer than clearance to an obstacle
     max_expansions: int = Field(32_000, ge=1)  # the budget, in work: node expansions per call (~10 s here)
     wall_clock_limit_s: float = Field(120.0, gt=0, le=3600)  # a safety net only; a call where it fires says so
 
@@ -138,10 +137,10 @@ class HybridAStar:
         return bool((self._gaps(poses) >= self._required(poses)).all())
 
     def _required(self, poses: np.ndarray) -> np.ndarray | float:
-        """Gap each sampled pose must keep: ``required_gap``, relieved within ``start_relief``
+        """Gap each sampled pose must keep: ``required_gap``, relieved within ``START_RELIEF``
         of a start that is closer (``common.clearance``; grid starts may touch the road's
         edges, and the car must be able to leave them)."""
-        return required_gap(poses, self._start, self._start_gap, self.required_gap, self.cfg.start_relief)
+        return required_gap(poses, self._start, self._start_gap, self.required_gap)
 
     def in_goal_set(self, pose) -> bool:
         """ISO success at ``pose`` (standing still), with ``goal_margin`` and heading to spare."""

@@ -47,9 +47,7 @@ class Checks:
     def clearance(self, poses: np.ndarray, margin: float, start: Start) -> np.ndarray | float:
         """Clearance each pose must keep: ``margin``, relieved near a start that is closer
         than that (``common.clearance``: the car may leave a tight spot, not tighten it)."""
-        return required_gap(
-            poses, (start.x, start.y), start.gap, margin, self.cfg.start_relief, slack=self.cfg.start_slack
-        )
+        return required_gap(poses, (start.x, start.y), start.gap, margin)
 
     def collisions(
         self, real_half: np.ndarray, margin: float, start: Start, pen: np.ndarray | None = None

@@ -45,7 +45,6 @@ class GuideConfig(StrictModel):
     cusp_cost: float = Field(3.0, ge=0)  # [m] per direction switch
     reverse_cost: float = Field(0.5, ge=0)  # extra cost per metre driven in reverse
     max_checked: int = Field(24, ge=1)  # candidate paths checked per call
-    start_relief: float = Field(1.0, gt=0, le=10)  # [m] around the start, the gap may shrink to ``start_gap``
     start_gap: float = Field(0.01, gt=0, le=1)  # (or to the start's own gap, if smaller): room to leave a kerb
     in_slot_turns: bool = True  # tails that park by back-and-forth arcs inside the slot
 
@@ -159,7 +158,7 @@ class GuideSearch:
         if start_gap is None:
             return need
         floor = self.cfg.start_gap if floor is None else floor
-        return required_gap(poses, poses[0], start_gap, need, self.cfg.start_relief, floor, slack=1e-6)
+        return required_gap(poses, poses[0], start_gap, need, floor=floor)
 
     def _clear(self, poses: np.ndarray, start_gap: float | None = None, gap: float | None = None) -> bool:
         return bool(np.all(self._gaps(poses) >= self._need(poses, start_gap, gap)))
