@@ -257,6 +257,14 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--no-curriculum", action="store_true", help="draw from all cases from the start")
     t.add_argument("--seed", type=int, default=None)
     t.add_argument("--out", default="results/rl", help="output folder (default: results/rl)")
+    t.add_argument(
+        "--demos",
+        default=None,
+        help="behaviour cloning instead of RL: the actor copies this dataset (a mirrorpark collect folder)",
+    )
+    t.add_argument(
+        "--epochs", type=_positive_int, default=None, help="behaviour-cloning epochs (default: configs/rl.yaml)"
+    )
     t.set_defaults(func=cmd_train_rl)
     return ap
 
@@ -266,6 +274,8 @@ def cmd_train_rl(args: argparse.Namespace) -> int:
 
     over = {"algo": args.algo, "total_steps": args.steps, "parking_types": args.parking_types, "seed": args.seed}
     cfg = load_rl_config(args.config, over)
+    if args.epochs is not None:
+        cfg = cfg.model_copy(update={"bc": cfg.bc.model_copy(update={"epochs": args.epochs})})
     if args.no_curriculum:
         cfg = cfg.model_copy(update={"curriculum": cfg.curriculum.model_copy(update={"enabled": False})})
     try:
@@ -274,12 +284,13 @@ def cmd_train_rl(args: argparse.Namespace) -> int:
 
         if cfg.algo == "tqc":
             import sb3_contrib  # noqa: F401
+        from planners.rl.bc import behaviour_clone
         from planners.rl.train import train
     except ImportError as err:
         raise ValueError(
             f"train-rl needs the rl extra ({err.name} is missing): pip install torch==2.13.0 && pip install -e '.[rl]'"
         ) from None
-    summary = train(cfg, args.out)
+    summary = behaviour_clone(cfg, args.demos, args.out) if args.demos else train(cfg, args.out)
     print(json.dumps({k: v for k, v in summary.items() if k != "config"}))
     print(f"model: {Path(args.out) / 'model.zip'}  (evaluate it with --planner rl:{Path(args.out) / 'model.zip'})")
     return 0

@@ -26,6 +26,15 @@ class EvalConfig(StrictModel):
     episodes: int = Field(30, ge=1, le=10_000)
 
 
+class BCConfig(StrictModel):
+    """Behaviour cloning of the actor from demonstrations (``train-rl --demos``)."""
+
+    epochs: int = Field(20, ge=1, le=10_000)
+    batch_size: int = Field(256, ge=1)
+    learning_rate: float = Field(1e-3, gt=0, le=1)
+    successes_only: bool = True  # clone only the episodes that ended parked
+
+
 class RLConfig(StrictModel):
     algo: Literal["sac", "tqc"] = "sac"
     total_steps: int = Field(200_000, ge=1)
@@ -42,6 +51,7 @@ class RLConfig(StrictModel):
     her: HerConfig = HerConfig()
     curriculum: CurriculumConfig = CurriculumConfig()
     eval: EvalConfig = EvalConfig()
+    bc: BCConfig = BCConfig()
     checkpoint_every_steps: int = Field(50_000, ge=1)
     parking_types: list[ParkingTypeName] = Field(default_factory=lambda: list(PARKING_TYPES), min_length=1)
     device: str = "auto"

@@ -39,21 +39,11 @@ def make_eval_env(cfg: RLConfig, grid: Grid) -> gym.Env:
     return Monitor(FixedScenarios(gym.make("MirrorPark-v0"), cases[: cfg.eval.episodes]))
 
 
-def train(cfg: RLConfig, out: str | Path, progress: bool = True) -> dict[str, Any]:
-    """Train per ``cfg``, save everything under ``out``; return the summary of train.json."""
-    import torch
+def make_model(cfg: RLConfig, env: gym.Env):
+    """The SAC or TQC model with HER that ``cfg`` describes, on ``env``."""
     from stable_baselines3 import HerReplayBuffer
-    from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback, EvalCallback
-    from stable_baselines3.common.logger import Logger, make_output_format
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    torch.set_num_threads(cfg.torch_threads)
-    grid = Grid.from_config()
-    env = make_train_env(cfg, grid)
-    eval_env = make_eval_env(cfg, grid)
-    algo = algo_class(cfg.algo)
-    model = algo(
+    return algo_class(cfg.algo)(
         "MultiInputPolicy",
         env,
         replay_buffer_class=HerReplayBuffer,
@@ -75,6 +65,21 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True) -> dict[str, An
         seed=cfg.seed,
         verbose=0,
     )
+
+
+def train(cfg: RLConfig, out: str | Path, progress: bool = True) -> dict[str, Any]:
+    """Train per ``cfg``, save everything under ``out``; return the summary of train.json."""
+    import torch
+    from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback, EvalCallback
+    from stable_baselines3.common.logger import Logger, make_output_format
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(cfg.torch_threads)
+    grid = Grid.from_config()
+    env = make_train_env(cfg, grid)
+    eval_env = make_eval_env(cfg, grid)
+    model = make_model(cfg, env)
     formats = [make_output_format("csv", str(out))]  # progress.csv beside the model
     if _has_tensorboard():
         formats.append(make_output_format("tensorboard", str(out / "tb")))
