@@ -265,6 +265,12 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument(
         "--epochs", type=_positive_int, default=None, help="behaviour-cloning epochs (default: configs/rl.yaml)"
     )
+    t.add_argument(
+        "--dagger-rounds",
+        type=_positive_int,
+        default=None,
+        help="with --demos: after cloning, this many DAgger rounds (the mirror planner labels the learner's states)",
+    )
     t.set_defaults(func=cmd_train_rl)
     return ap
 
@@ -285,12 +291,20 @@ def cmd_train_rl(args: argparse.Namespace) -> int:
         if cfg.algo == "tqc":
             import sb3_contrib  # noqa: F401
         from planners.rl.bc import behaviour_clone
+        from planners.rl.dagger import dagger
         from planners.rl.train import train
     except ImportError as err:
         raise ValueError(
             f"train-rl needs the rl extra ({err.name} is missing): pip install torch==2.13.0 && pip install -e '.[rl]'"
         ) from None
-    summary = behaviour_clone(cfg, args.demos, args.out) if args.demos else train(cfg, args.out)
+    if args.dagger_rounds and not args.demos:
+        raise ValueError("--dagger-rounds: needs --demos (DAgger starts from the cloned policy)")
+    if args.demos and args.dagger_rounds:
+        summary = dagger(cfg, args.demos, args.out, rounds=args.dagger_rounds)
+    elif args.demos:
+        summary = behaviour_clone(cfg, args.demos, args.out)
+    else:
+        summary = train(cfg, args.out)
     print(json.dumps({k: v for k, v in summary.items() if k != "config"}))
     print(f"model: {Path(args.out) / 'model.zip'}  (evaluate it with --planner rl:{Path(args.out) / 'model.zip'})")
     return 0
