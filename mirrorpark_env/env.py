@@ -128,6 +128,7 @@ class MirrorParkEnv(gym.Env):
         self.path_length = 0.0
         self._last_dir = 0
         self.collided = bool(g.checker.collides(s.x, s.y, s.theta)[0])
+        self._free = not len(g.obstacles.polygons)  # a scene without obstacles
         self.min_clearance = float(self._gaps(np.array([[s.x, s.y, s.theta]]))[0])
         self.speed_at_min_clearance = 0.0
         self._x_range = (g.bounds[0] + self.params.length, g.bounds[1] - self.params.length)
@@ -200,10 +201,9 @@ class MirrorParkEnv(gym.Env):
     def _gaps(self, traj: np.ndarray) -> np.ndarray:
         """Each sub-step's gap to the nearest obstacle: the separating-axis gap, a lower bound
         on the Euclidean distance (< 0: overlap)."""
-        checker = self.geometry.checker
-        if not len(checker.obstacles.polygons):
+        if self._free:
             return np.full(len(traj), np.inf)
-        return -checker.penetration(traj[:, 0], traj[:, 1], traj[:, 2]).max(axis=1)
+        return -self.geometry.checker.penetration(traj[:, 0], traj[:, 1], traj[:, 2]).max(axis=1)
 
     def _count_switches(self, speeds: list[float]) -> None:
         """A switch is a change of driving direction between two movements."""

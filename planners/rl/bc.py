@@ -101,17 +101,34 @@ def behaviour_clone(cfg: RLConfig, demos: str | Path, out: str | Path, progress:
     t0 = time.perf_counter()
     history = fit_actor(model, obs, actions, cfg, progress)
     wall = time.perf_counter() - t0
+    return save_trained(
+        model,
+        cfg,
+        out,
+        "bc",
+        demos,
+        episodes,
+        len(actions),
+        wall,
+        epochs=cfg.bc.epochs,
+        loss_per_epoch=[round(v, 6) for v in history],
+        action_error_before=round(before, 6),
+        action_error_after=round(action_error(model, obs, actions), 6),
+    )
+
+
+def save_trained(
+    model, cfg: RLConfig, out: Path, method: str, demos, episodes: int, samples: int, wall: float, **extra
+) -> dict[str, Any]:
+    """``model.zip`` and ``train.json`` (what was trained, on what, how long) in ``out``."""
     model.save(out / "model.zip")
     summary = {
         "algo": cfg.algo,
-        "method": "bc",
+        "method": method,
         "demos": str(dataset_path(demos)),
         "episodes": episodes,
-        "samples": int(len(actions)),
-        "epochs": cfg.bc.epochs,
-        "loss_per_epoch": [round(v, 6) for v in history],
-        "action_error_before": round(before, 6),
-        "action_error_after": round(action_error(model, obs, actions), 6),
+        "samples": int(samples),
+        **extra,
         "wall_time_s": round(wall, 1),
         "device": str(model.device),
         "config": cfg.model_dump(),

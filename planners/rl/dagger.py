@@ -9,7 +9,6 @@ from the grid with a seed per round, apart from the smoke and standard samples' 
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -19,7 +18,7 @@ import numpy as np
 from mirrorpark_env.scenario import Scenario, ScenarioGeometry
 from mirrorpark_env.vehicle import VehicleState, to_action
 
-from .bc import action_error, dataset_path, fit_actor, load_demos
+from .bc import action_error, fit_actor, load_demos, save_trained
 from .config import RLConfig
 
 
@@ -104,19 +103,16 @@ def dagger(
         fit_actor(model, obs, actions, cfg, progress)
         log.append({"round": r + 1, "labelled": int(len(new_actions)), "error_on_new": round(err, 6)})
     wall = time.perf_counter() - t0
-    model.save(out / "model.zip")
-    summary = {
-        "algo": cfg.algo,
-        "method": "dagger",
-        "demos": str(dataset_path(demos)),
-        "episodes": episodes,
-        "samples": int(len(actions)),
-        "rounds": log,
-        "expert_calls": expert.calls,
-        "epochs_per_fit": cfg.bc.epochs,
-        "wall_time_s": round(wall, 1),
-        "device": str(model.device),
-        "config": cfg.model_dump(),
-    }
-    (out / "train.json").write_text(json.dumps(summary, indent=2))
-    return summary
+    return save_trained(
+        model,
+        cfg,
+        out,
+        "dagger",
+        demos,
+        episodes,
+        len(actions),
+        wall,
+        rounds=log,
+        expert_calls=expert.calls,
+        epochs_per_fit=cfg.bc.epochs,
+    )
