@@ -60,8 +60,8 @@ def failure_cause(
     return "gave_up", math.nan
 
 
-def row_cause(row: dict[str, Any], info: dict[str, Any] | None, feasible: bool) -> tuple[str | None, float]:
-    """``failure_cause`` of a runner row (``info``: the episode's last info; None on error)."""
+def episode_cause(info: dict[str, Any] | None, feasible: bool) -> tuple[str | None, float]:
+    """``failure_cause`` of an episode from its last info (None: the case raised)."""
     if info is None:
         return failure_cause(
             success=False,

@@ -20,7 +20,7 @@ from mirrorpark_env.criteria import iso_pose_exists
 from mirrorpark_env.scenario import Scenario
 from mirrorpark_env.vehicle import VehicleParams
 
-from .causes import row_cause
+from .causes import episode_cause
 from .store import ResultStore
 
 MARGINS = ("M_f", "M_r", "M_e", "M_fl", "M_fr", "M_rl", "M_rr")
@@ -118,7 +118,7 @@ def run_case(planner: str, sc: Scenario) -> dict[str, Any]:
     feasible = bool(iso_pose_exists(sc.parking_type.value, sc.slot_length, sc.slot_width, VehicleParams.table_ii()))
     row["feasible"] = feasible
     ended = None if row.get("planner_status") == "error" else info
-    row["failure_cause"], row["failure_amount"] = row_cause(row, ended, feasible)
+    row["failure_cause"], row["failure_amount"] = episode_cause(ended, feasible)
     row["episode_wall_s"] = time.perf_counter() - t0
     return row
 

@@ -73,7 +73,9 @@ class MirrorParkEnv(gym.Env):
     Planners get the scene's geometry once, in the reset info (``info["geometry"]``), and
     the measured vehicle state every step (``info["vehicle_state"]``); they never read
     the simulator. Also: ``is_success``, ``collision``, ``failed_criterion``, ``margins``,
-    ``heading_error``, ``direction_switches``, ``parking_time``, ``path_length``.
+    ``heading_error``, ``direction_switches``, ``parking_time``, ``path_length``, and
+    ``min_clearance`` / ``speed_at_min_clearance`` (the closest the car has come to any
+    obstacle so far, a separating-axis gap over every sub-step, and its speed there).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
