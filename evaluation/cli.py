@@ -266,6 +266,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--epochs", type=_positive_int, default=None, help="behaviour-cloning epochs (default: configs/rl.yaml)"
     )
     t.add_argument(
+        "--resume",
+        default=None,
+        metavar="DIR",
+        help="continue the interrupted run in DIR from its last checkpoint (--steps may raise its total)",
+    )
+    t.add_argument(
         "--dagger-rounds",
         type=_positive_int,
         default=None,
@@ -275,7 +281,14 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def cmd_train_rl(args: argparse.Namespace) -> int:
+def _rl_config(args: argparse.Namespace):
+    """The run's config: a resumed run's own (``--steps`` may raise its total), else
+    configs/rl.yaml (or ``--config``) with the flags' overrides."""
+    if args.resume:
+        from planners.rl.train import resume_config
+
+        cfg = resume_config(args.resume)
+        return cfg.model_copy(update={"total_steps": args.steps}) if args.steps is not None else cfg
     from planners.rl.config import load_rl_config
 
     over = {"algo": args.algo, "total_steps": args.steps, "parking_types": args.parking_types, "seed": args.seed}
@@ -284,12 +297,16 @@ def cmd_train_rl(args: argparse.Namespace) -> int:
         cfg = cfg.model_copy(update={"bc": cfg.bc.model_copy(update={"epochs": args.epochs})})
     if args.no_curriculum:
         cfg = cfg.model_copy(update={"curriculum": cfg.curriculum.model_copy(update={"enabled": False})})
+    return cfg
+
+
+def cmd_train_rl(args: argparse.Namespace) -> int:
+    if args.dagger_rounds and not args.demos:
+        raise ValueError("--dagger-rounds: needs --demos (DAgger starts from the cloned policy)")
     try:
         import stable_baselines3  # noqa: F401
         import torch  # noqa: F401
 
-        if cfg.algo == "tqc":
-            import sb3_contrib  # noqa: F401
         from planners.rl.bc import behaviour_clone
         from planners.rl.dagger import dagger
         from planners.rl.train import train
@@ -297,16 +314,23 @@ def cmd_train_rl(args: argparse.Namespace) -> int:
         raise ValueError(
             f"train-rl needs the rl extra ({err.name} is missing): pip install torch==2.13.0 && pip install -e '.[rl]'"
         ) from None
-    if args.dagger_rounds and not args.demos:
-        raise ValueError("--dagger-rounds: needs --demos (DAgger starts from the cloned policy)")
-    if args.demos and args.dagger_rounds:
-        summary = dagger(cfg, args.demos, args.out, rounds=args.dagger_rounds)
+    cfg = _rl_config(args)
+    if cfg.algo == "tqc":
+        try:
+            import sb3_contrib  # noqa: F401
+        except ImportError:
+            raise ValueError("algo tqc needs sb3-contrib (the rl extra): pip install -e '.[rl]'") from None
+    out = args.resume or args.out
+    if args.resume:
+        summary = train(cfg, out, resume=True)
+    elif args.demos and args.dagger_rounds:
+        summary = dagger(cfg, args.demos, out, rounds=args.dagger_rounds)
     elif args.demos:
-        summary = behaviour_clone(cfg, args.demos, args.out)
+        summary = behaviour_clone(cfg, args.demos, out)
     else:
-        summary = train(cfg, args.out)
+        summary = train(cfg, out)
     print(json.dumps({k: v for k, v in summary.items() if k != "config"}))
-    print(f"model: {Path(args.out) / 'model.zip'}  (evaluate it with --planner rl:{Path(args.out) / 'model.zip'})")
+    print(f"model: {Path(out) / 'model.zip'}  (evaluate it with --planner rl:{Path(out) / 'model.zip'})")
     return 0
 
 

@@ -109,3 +109,35 @@ def test_a_short_training_run_saves_a_model_that_acts_as_a_policy(tmp_path, requ
     assert len(policy.stats) == steps and all(s.status == "ok" for s in policy.stats)
     with pytest.raises(ValueError, match=r"rl model: no such file"):
         make_policy(f"rl:{tmp_path / 'missing.zip'}")
+
+
+@pytest.mark.rl
+def test_resume_continues_from_the_checkpoints_step_count(tmp_path, require_module):
+    """A run stopped after its 200-step checkpoint, resumed to 400 steps: the model goes on
+    from 200 (its weights, buffer and step count), it does not start from zero."""
+    require_module("stable_baselines3")
+    from evaluation.cli import main as cli
+    from planners.rl.train import latest_checkpoint, train
+
+    cfg = load_rl_config(
+        overrides=dict(
+            total_steps=200,
+            learning_starts=100,
+            batch_size=32,
+            net_arch=[32, 32],
+            max_episode_steps=40,
+            checkpoint_every_steps=100,
+            eval={"every_steps": 1000, "episodes": 1},
+        )
+    )
+    train(cfg, tmp_path, progress=False)  # as if interrupted right after its last checkpoint
+    ckpt, steps = latest_checkpoint(tmp_path, "sac")
+    assert steps == 200
+    assert cli(["train-rl", "--resume", str(tmp_path), "--steps", "400"]) == 0
+    summary = json.loads((tmp_path / "train.json").read_text())
+    assert summary["resumed_from_step"] == 200 and summary["steps_done"] == 400
+    assert latest_checkpoint(tmp_path, "sac")[1] == 400
+    with pytest.raises(ValueError, match="--resume"):
+        from planners.rl.train import resume_config
+
+        resume_config(tmp_path / "nothing")

@@ -67,8 +67,29 @@ def make_model(cfg: RLConfig, env: gym.Env):
     )
 
 
-def train(cfg: RLConfig, out: str | Path, progress: bool = True) -> dict[str, Any]:
-    """Train per ``cfg``, save everything under ``out``; return the summary of train.json."""
+def latest_checkpoint(out: Path, algo: str) -> tuple[Path, int] | None:
+    """The checkpoint with the most steps in ``out/checkpoints`` and its step count."""
+    found = []
+    for p in (out / "checkpoints").glob(f"{algo}_*_steps.zip"):
+        steps = p.stem[len(algo) + 1 : -len("_steps")]
+        if steps.isdigit():
+            found.append((int(steps), p))
+    return (max(found)[1], max(found)[0]) if found else None
+
+
+def resume_config(out: str | Path) -> RLConfig:
+    """The config an interrupted run in ``out`` was started with."""
+    p = Path(out) / "config.json"
+    if not p.exists():
+        raise ValueError(f"--resume: {str(p)!r} not found: {out} holds no run of train-rl")
+    return RLConfig.model_validate_json(p.read_text())
+
+
+def train(cfg: RLConfig, out: str | Path, progress: bool = True, resume: bool = False) -> dict[str, Any]:
+    """Train per ``cfg``, save everything under ``out``; return the summary of train.json.
+
+    ``resume``: continue from the latest checkpoint in ``out`` (its weights, replay buffer
+    and step count) up to ``cfg.total_steps``, not from zero."""
     import torch
     from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback, EvalCallback
     from stable_baselines3.common.logger import Logger, make_output_format
@@ -79,7 +100,17 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True) -> dict[str, An
     grid = Grid.from_config()
     env = make_train_env(cfg, grid)
     eval_env = make_eval_env(cfg, grid)
-    model = make_model(cfg, env)
+    if resume:
+        found = latest_checkpoint(out, cfg.algo)
+        if found is None:
+            raise ValueError(f"--resume: no checkpoint in {out / 'checkpoints'}")
+        model = algo_class(cfg.algo).load(found[0], env=env, device=cfg.device)
+        buffer = found[0].with_name(f"{cfg.algo}_replay_buffer_{found[1]}_steps.pkl")
+        if buffer.exists():
+            model.load_replay_buffer(buffer)
+    else:
+        model = make_model(cfg, env)
+        (out / "config.json").write_text(cfg.model_dump_json(indent=2))
     formats = [make_output_format("csv", str(out))]  # progress.csv beside the model
     if _has_tensorboard():
         formats.append(make_output_format("tensorboard", str(out / "tb")))
@@ -111,7 +142,9 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True) -> dict[str, An
         [
             Curriculum(),
             Progress(),
-            CheckpointCallback(cfg.checkpoint_every_steps, str(out / "checkpoints"), name_prefix=cfg.algo),
+            CheckpointCallback(
+                cfg.checkpoint_every_steps, str(out / "checkpoints"), name_prefix=cfg.algo, save_replay_buffer=True
+            ),
             EvalCallback(
                 eval_env,
                 n_eval_episodes=cfg.eval.episodes,
@@ -123,15 +156,18 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True) -> dict[str, An
         ]
     )
     t0 = time.perf_counter()
-    model.learn(total_timesteps=cfg.total_steps, callback=callbacks)
+    start = model.num_timesteps
+    model.learn(total_timesteps=max(cfg.total_steps - start, 0), callback=callbacks, reset_num_timesteps=not resume)
     wall = time.perf_counter() - t0
     model.save(out / "model.zip")
     curve = learning_curve(out)
     summary = {
         "algo": cfg.algo,
         "total_steps": cfg.total_steps,
-        "wall_time_s": round(wall, 1),
-        "steps_per_s": round(cfg.total_steps / wall, 1),
+        "resumed_from_step": start if resume else None,
+        "steps_done": int(model.num_timesteps),
+        "wall_time_s": round(wall, 1),  # of this run (a resumed run: of its part)
+        "steps_per_s": round((model.num_timesteps - start) / wall, 1) if wall > 0 else None,
         "device": str(model.device),
         "parking_types": list(cfg.parking_types),
         "final_eval_success_rate": curve[-1][1] if curve else None,
