@@ -181,9 +181,16 @@ def test_a_failed_first_reset_does_not_break_the_env():
 # ---------------------------------------------------------- 6. journal damage
 @pytest.mark.parametrize(
     "line",
-    [b"42", b"null", b'{"a": 1}', b'{"planner": 5, "case_id": "x"}', b'{"planner": "quick", "case_id": "x", '
-     b'"success": "yes"}', b"\xff\xfe{}", b'{"planner": "quick", "case_id": "case0'],
-)  # fmt: skip
+    [
+        b"42",
+        b"null",
+        b'{"a": 1}',
+        b'{"planner": 5, "case_id": "x"}',
+        b'{"planner": "quick", "case_id": "x", "success": "yes"}',
+        b"\xff\xfe{}",
+        b'{"planner": "quick", "case_id": "case0',
+    ],
+)
 def test_journal_damage_is_reported_skipped_and_kept_aside(tmp_path, line):
     store = ResultStore(tmp_path)
     store.append(_row(1))
