@@ -104,6 +104,8 @@ def run_case(planner: str, sc: Scenario) -> dict[str, Any]:
             inside_slot=bool(info["inside_slot"]),
             min_clearance_m=float(info["min_clearance"]),
             speed_at_min_clearance=float(info["speed_at_min_clearance"]),
+            min_clearance_away_m=float(info["min_clearance_away"]),
+            speed_at_min_clearance_away=float(info["speed_at_min_clearance_away"]),
         )
         for m in MARGINS:
             row[m] = float(info["margins"].get(m, math.nan))

@@ -22,6 +22,7 @@ from .vehicle import TruthModel, VehicleParams, VehicleState, from_action
 
 POS_SCALE = 10.0  # [m] scale of positions in observations and goals
 V_EPS = 0.01  # [m/s] speeds below this count as standing when counting direction switches
+AWAY = 1.0  # [m] a rear axle this far from its start has left the start's kerb behind
 
 
 class MirrorParkEnv(gym.Env):
@@ -75,7 +76,9 @@ class MirrorParkEnv(gym.Env):
     the simulator. Also: ``is_success``, ``collision``, ``failed_criterion``, ``margins``,
     ``heading_error``, ``direction_switches``, ``parking_time``, ``path_length``, and
     ``min_clearance`` / ``speed_at_min_clearance`` (the closest the car has come to any
-    obstacle so far, a separating-axis gap over every sub-step, and its speed there).
+    obstacle so far, a separating-axis gap over every sub-step, and its speed there), and
+    the same once the rear axle is more than 1 m from its start (``*_away``: grid starts
+    may touch a kerb, and driving off along it is not a close pass).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
@@ -133,6 +136,7 @@ class MirrorParkEnv(gym.Env):
         self._free = not len(g.obstacles.polygons)  # a scene without obstacles
         self.min_clearance = float(self._gaps(np.array([[s.x, s.y, s.theta]]))[0])
         self.speed_at_min_clearance = 0.0
+        self.min_clearance_away, self.speed_at_min_clearance_away = math.inf, 0.0
         self._x_range = (g.bounds[0] + self.params.length, g.bounds[1] - self.params.length)
         sc = scenario
         onehot = [1.0 if t is sc.parking_type else 0.0 for t in TYPES]
@@ -182,6 +186,11 @@ class MirrorParkEnv(gym.Env):
         i = int(np.argmin(gap))
         if gap[i] < self.min_clearance:  # the closest the car has come to any obstacle
             self.min_clearance, self.speed_at_min_clearance = float(gap[i]), float(abs(traj[i, 3]))
+        away = np.hypot(traj[:, 0] - self.geometry.start.x, traj[:, 1] - self.geometry.start.y) > AWAY
+        if away.any():
+            j = int(np.argmin(np.where(away, gap, np.inf)))
+            if gap[j] < self.min_clearance_away:
+                self.min_clearance_away, self.speed_at_min_clearance_away = float(gap[j]), float(abs(traj[j, 3]))
         self.path_length += float(traj[:, 6].sum())
         self._count_switches(traj[:, 3].tolist())
         self.state = traj[-1, :6]
@@ -252,6 +261,8 @@ class MirrorParkEnv(gym.Env):
             "path_length": self.path_length,
             "min_clearance": self.min_clearance,  # [m] closest to any obstacle so far (separating-axis gap)
             "speed_at_min_clearance": self.speed_at_min_clearance,  # [m/s] |v| at that moment
+            "min_clearance_away": self.min_clearance_away,  # [m] the same, over poses > 1 m from the start
+            "speed_at_min_clearance_away": self.speed_at_min_clearance_away,
             "vehicle_state": VehicleState(x, y, th, v, a, d),
         }
 

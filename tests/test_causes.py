@@ -123,3 +123,17 @@ def test_causes_cover_every_name():
 
     assert {c.split(":")[0] for c in CASES} == set(CAUSES)
     assert np.isfinite(P.length)
+
+
+def test_clearance_away_from_the_start_leaves_the_start_kerb_out(monkeypatch):
+    """A start 1 cm from the far kerb, driven straight on along it: the whole episode's
+    closest approach is that 1 cm; more than 1 m from the start it is the same kerb's gap
+    (the car keeps its line), and it is never below the whole episode's."""
+    monkeypatch.setitem(registry.PLANNERS, "scripted", _policy(lambda s, t: (1.0, 0.0), lambda s, t: s.x > t[0] + 9))
+    sc = Scenario.from_degrees("parallel", 4.5, 6.0, 2.5, 0, 4.5 - 0.835 - 0.01)  # 1 cm below the far kerb
+    row = run_case("scripted", sc)
+    assert row["min_clearance_m"] == pytest.approx(0.01, abs=1e-6)
+    assert row["min_clearance_away_m"] >= row["min_clearance_m"]
+    assert row["min_clearance_away_m"] == pytest.approx(0.01, abs=1e-6)  # along the kerb: still 1 cm
+    row = run_case("scripted", Scenario.from_degrees("parallel", 4.5, 6.0, 2.5, 0, 2.25))  # mid-road
+    assert row["min_clearance_away_m"] == pytest.approx(2.25 - 0.835, abs=1e-6)  # to the slot line
