@@ -63,18 +63,7 @@ def failure_cause(
 def episode_cause(info: dict[str, Any] | None, feasible: bool) -> tuple[str | None, float]:
     """``failure_cause`` of an episode from its last info (None: the case raised)."""
     if info is None:
-        return failure_cause(
-            success=False,
-            error=True,
-            collision=False,
-            out_of_scene=False,
-            feasible=feasible,
-            inside_slot=False,
-            stopped=False,
-            heading_error_deg=math.nan,
-            margins={},
-            parking_time_s=math.nan,
-        )
+        return "error", math.nan
     return failure_cause(
         success=bool(info["is_success"]),
         error=False,

@@ -93,10 +93,6 @@ class Grid:
         out["feasible"] = {t.value: int(f[i]) for i, t in enumerate(TYPES)} | {"total": int(f.sum())}
         return out
 
-    def is_feasible(self, sc: Scenario) -> bool:
-        """Whether ``sc``'s slot admits an ISO-compliant final pose for this grid's car."""
-        return bool(iso_pose_exists(sc.parking_type.value, sc.slot_length, sc.slot_width, self.vehicle))
-
     @cached_property
     def _id_index(self) -> dict[str, int]:
         return {self.scenario(i).case_id: i for i in range(len(self))}

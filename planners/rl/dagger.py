@@ -27,13 +27,12 @@ class PlannerExpert:
     (a hold-and-brake command where it finds none)."""
 
     def __init__(self) -> None:
-        from planners.mirror.planner import MirrorPlanner
-
-        self._make = MirrorPlanner
         self.calls = 0
 
     def reset(self, geometry: ScenarioGeometry) -> None:
-        self.planner = self._make(geometry)
+        from planners.mirror.planner import MirrorPlanner
+
+        self.planner = MirrorPlanner(geometry)
         self.planner.prepare()
         self.params = geometry.vehicle
 
