@@ -8,7 +8,10 @@
   theta0 and y0." A cell is (type, SL, SW, theta0, y0) and pools the runs of every road
   width that holds it; it is in the ODD when >= 95 % of its runs park. The ODD size is
   the count of such cells.
-- success over feasible cases: those whose slot admits an ISO-compliant pose at all.
+- success over feasible cases: those whose slot admits an ISO-compliant pose at all;
+- success on comfortable slots (parallel SL >= 1.25 x car length, reverse and angle
+  SW >= car width + 0.4 m, Table II's car), and over feasible cases with y0 >= 1.6 m
+  (the paper reports around 100 % there).
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from mirrorpark_env.config import PARKING_TYPES
+from mirrorpark_env.vehicle import VehicleParams
 
 TYPES = PARKING_TYPES
 CELL = ("parking_type", "slot_length", "slot_width", "theta0_deg", "y0")  # road width pooled (the paper's ODD)
@@ -35,6 +39,16 @@ PAPER = {
     "mean_parking_time_s": 28.2,
     "mean_plan_time_ms": 74.0,
 }
+
+
+def comfortable(df: pd.DataFrame, vehicle: VehicleParams | None = None) -> pd.Series:
+    """Rows whose slot is comfortable: parallel SL >= 1.25 x car length, reverse and angle
+    SW >= car width + 0.4 m (Table II's car unless ``vehicle`` is given)."""
+    v = vehicle or VehicleParams.table_ii()
+    parallel = df["parking_type"] == "parallel"
+    return (parallel & (df["slot_length"] >= 1.25 * v.length - 1e-9)) | (
+        ~parallel & (df["slot_width"] >= v.width + 0.4 - 1e-9)
+    )
 
 
 def _rate(s: pd.Series) -> float | None:
@@ -68,6 +82,8 @@ def summary(df: pd.DataFrame, planner: str | None = None) -> dict[str, Any]:
         "cases": int(len(df)),
         "success_rate": rates,
         "success_rate_feasible": rates_feasible,  # over cases whose slot admits an ISO pose
+        "success_rate_comfortable": _rate(success[comfortable(df)]) if len(df) else None,
+        "success_rate_y0_1.6_feasible": _rate(success[feasible & (df["y0"] >= 1.6 - 1e-9)]) if len(df) else None,
         "mean_switches": float(ok["switches"].mean()) if len(ok) else None,
         "mean_parking_time_s": float(ok["parking_time_s"].mean()) if len(ok) else None,
         "plan_time_ms": {

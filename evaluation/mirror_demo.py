@@ -8,6 +8,7 @@ what the environment reported each step and the plans the policy made.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,7 +30,7 @@ from .figures import _plt
 # only at their ends, where the mirror has nothing to show): Fig. 19-like manoeuvres.
 DEMO_CASES = {
     "parallel": Scenario.from_case_id("parallel_rw4.50_sl5.82_sw2.50_th+30_y1.30"),
-    "reverse": Scenario.from_case_id("reverse_rw7.00_sl4.82_sw3.12_th+30_y3.00"),
+    "reverse": Scenario.from_case_id("reverse_rw6.00_sl4.82_sw2.02_th-80_y4.00"),
     "angle": Scenario.from_case_id("angle_rw4.50_sl4.82_sw1.92_th+10_y1.80"),
 }
 
@@ -152,14 +153,16 @@ def _figure(g: ScenarioGeometry, states: np.ndarray, plans: list[Plan], info: di
             )
             ax.plot(*plan.switch_point, "o", color=c, ms=5)
             focus.append(corners)
-    if plans:  # drawn before _scene, which sets the view (to include the line's point nearest the target)
-        line = plans[0].mirror
-        n = np.array(line.normal)
-        base = np.array(line.target_xy) + line.distance * n
-        focus.append(base[None])
-        ends = base + np.outer([-60.0, 60.0], [-n[1], n[0]])
-        what = "mirror line" if line.fixed else "mirror line (switch at least this far out)"
-        ax.plot(ends[:, 0], ends[:, 1], "-" if line.fixed else "-.", color="tab:purple", lw=1.0, label=what)
+    natural = -1 if g.parking_type.value == "parallel" else 1  # first gear of the paper's mirror line
+    for k, plan in enumerate(plans):  # each such switch's mirror line: through S, along its goal's axis
+        if plan.switch_point is None or plan.candidate.direction != natural:
+            continue
+        heading = _plan_goal(plan, g)[2]
+        along = np.array([math.cos(heading), math.sin(heading)])
+        ends = np.array(plan.switch_point) + np.outer([-60.0, 60.0], along)
+        ax.plot(
+            ends[:, 0], ends[:, 1], "-.", color=colours[k % len(colours)], lw=0.9, label=f"plan {k + 1}: mirror line"
+        )
     _scene(ax, g, np.concatenate(focus))
     ax.plot(states[:, 0], states[:, 1], "-", color="k", lw=1.6, label="driven (rear axle)")
     for k in range(0, len(states), 10):  # a footprint every 10 control steps

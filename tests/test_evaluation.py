@@ -12,7 +12,7 @@ import pytest
 from evaluation import registry
 from evaluation.cases import load_case_file
 from evaluation.cli import main as cli
-from evaluation.metrics import headline, odd_size, summary
+from evaluation.metrics import comfortable, headline, odd_size, summary
 from evaluation.report import write_report
 from evaluation.runner import evaluate
 from evaluation.store import ResultStore, read_results
@@ -309,3 +309,19 @@ def test_success_over_feasible_cases():
     s = summary(df, "mirror")
     assert s["success_rate"]["parallel"] == 0.5 and s["success_rate_feasible"]["parallel"] == 1.0
     assert s["success_rate_feasible"]["all"] == 1.0
+
+
+def test_comfortable_slots_and_the_y0_target_by_hand():
+    # Table II's car: 3.82 m long (1.25 x = 4.775 m), 1.67 m wide (+ 0.4 = 2.07 m).
+    df = pd.DataFrame(
+        [
+            _row("m", "parallel", True, 1, 10.0, [1], k=1, slot_length=4.78, y0=1.6),  # comfortable
+            _row("m", "parallel", False, 1, 10.0, [1], k=2, slot_length=4.77, y0=1.6),  # just too short
+            _row("m", "reverse", False, 1, 10.0, [1], k=3, slot_width=2.07, y0=1.5),  # comfortable, y0 < 1.6
+            _row("m", "angle", True, 1, 10.0, [1], k=4, slot_width=2.06, y0=2.0),  # just too narrow
+        ]
+    )
+    assert list(comfortable(df)) == [True, False, True, False]
+    s = summary(df.assign(feasible=[True, True, True, False]), "m")
+    assert s["success_rate_comfortable"] == 0.5  # 1 of the 2 comfortable rows parked
+    assert s["success_rate_y0_1.6_feasible"] == 0.5  # rows 1-2: feasible with y0 >= 1.6

@@ -36,6 +36,7 @@ class MirrorPlannerConfig(StrictModel):
     obstacle_margin: float = Field(0.04, ge=0, le=1)  # [m] planned clearance to infeasible regions
     w_slack: float = Field(1e5, gt=0)  # exact penalty per m of obstacle-row violation (rows are soft)
     check_margin: float = Field(0.01, ge=0, le=1)  # [m] a rollout closer than this to an obstacle is not clear
+    band_tolerance: float = Field(0.008, ge=0, le=0.1)  # [m] a plan's switch may lie this far outside its band
     mirror_margin: float = Field(1.1, ge=1, le=3)  # reverse / angle: l_mi >= margin * r_min (1 - cos psi)
     node_limit: int = Field(100, ge=1, le=100_000)  # branch-and-bound nodes per MIQP (a work budget)
     kkt_solver: Literal["sparse_ldlt", "sparse_multistage", "auto"] = "auto"  # piqp's (solvers.PiqpQP)

@@ -93,3 +93,79 @@ def mirrored_target(target: tuple[float, float, float], switch_xy) -> tuple[floa
     """The real target reflected through the switch point (Theorem 2): heading unchanged."""
     sx, sy = switch_xy
     return (2 * sx - target[0], 2 * sy - target[1], target[2])
+
+
+@dataclass(frozen=True)
+class SwitchBand:
+    """Rows ``a_s . S + a_theta theta_s >= lo`` on the switch point S and the heading
+    theta_s at the switch step: where a plan's switch may lie.
+
+    The lower row is the reach bound of Eqs. (1), (5), (6) (from the switch, one arc
+    within full lock turns the car onto its goal's axis); the optional second row is
+    Theorem 1's upper bound, Eq. (2) (the rear corner stays off the kerb). Both are
+    linearised at a reference switch heading (SCP re-linearises each round)."""
+
+    a_s: tuple[tuple[float, float], ...]
+    a_theta: tuple[float, ...]
+    lo: tuple[float, ...]
+
+
+def switch_band(
+    params: VehicleParams,
+    goal,
+    theta_ref: float,
+    after: int,
+    margin: float = 1.0,
+    slot_width: float | None = None,
+) -> SwitchBand:
+    """The band of a plan whose switch has heading ``theta_ref`` in the reference and whose
+    real gear after the switch is ``after`` (+1 forward, -1 reverse), toward ``goal``
+    (x, y, theta; theta on the branch of ``theta_ref``).
+
+    With psi = |theta_s - theta_goal| and l the switch point's offset from the goal's
+    axis on the side the last arc comes from: l >= margin r_min (1 - cos psi), and, given
+    ``slot_width`` (parallel parking into the slot), l <= SW / 2 - l1 sin psi - W / 2 cos psi.
+    """
+    gx, gy, gth = (float(v) for v in goal)
+    err = theta_ref - gth
+    sign_e = 1.0 if err >= 0.0 else -1.0
+    side = sign_e * after  # the arc after the switch comes from this side of the goal's axis
+    n = right_normal(gth)
+    a_s = (side * n[0], side * n[1])
+    l_goal = a_s[0] * gx + a_s[1] * gy  # l = a_s . S - l_goal
+    psi = abs(err)
+    r = margin * params.r_min
+    # l - r (1 - cos psi_r) - r sin psi_r (psi - psi_r) >= 0, psi = sign_e (theta_s - gth)
+    k = r * math.sin(psi)
+    rows_s, rows_th, lo = [a_s], [-k * sign_e], [l_goal + r * (1.0 - math.cos(psi)) - k * psi - k * sign_e * gth]
+    if slot_width is not None:
+        # U(psi_r) + U'(psi_r) (psi - psi_r) - l >= 0
+        u = parallel_upper_bound(params, slot_width, psi)
+        du = -params.rear_overhang * math.cos(psi) + 0.5 * params.width * math.sin(psi)
+        rows_s.append((-a_s[0], -a_s[1]))
+        rows_th.append(du * sign_e)
+        lo.append(-l_goal - u + du * psi + du * sign_e * gth)
+    return SwitchBand(tuple(rows_s), tuple(rows_th), tuple(lo))
+
+
+def band_margin(
+    params: VehicleParams,
+    goal,
+    pose,
+    after: int,
+    margin: float = 1.0,
+    slot_width: float | None = None,
+) -> float:
+    """How far [m] a switch at ``pose`` (x, y, theta) lies inside the band of
+    ``switch_band`` (exact, not linearised): negative outside."""
+    gx, gy, gth = (float(v) for v in goal)
+    x, y, th = (float(v) for v in pose)
+    err = math.remainder(th - gth, 2 * math.pi)
+    side = (1.0 if err >= 0.0 else -1.0) * after
+    n = right_normal(gth)
+    offset = side * (n[0] * (x - gx) + n[1] * (y - gy))
+    psi = abs(err)
+    inside = offset - margin * reach_lower_bound(params, psi)
+    if slot_width is not None:
+        inside = min(inside, parallel_upper_bound(params, slot_width, psi) - offset)
+    return inside

@@ -38,7 +38,7 @@ from .checks import Checks, Start
 from .config import MirrorPlannerConfig
 from .frames import FLIP, XI_TH, planned_controls, real_commands, to_planned
 from .guide import GuideSearch
-from .mirror_line import MirrorLine, mirror_line
+from .mirror_line import MirrorLine, SwitchBand, band_margin, mirror_line, switch_band
 from .model import PlanningModel
 from .obstacles import ObstacleRows
 from .plans import Candidate, Plan
@@ -117,8 +117,9 @@ class MirrorPlanner:
         plan = None
         if guide is not None:
             cand, seed, goal = self.guided_seed.seed(xi0, guide)
+            natural = cand.direction == self.shape_seeds.first_direction  # the order of the paper's mirror line
             plan, st = self.solve_candidate(
-                xi0, cand, goal, start, self.line, seed, iterations=self.cfg.guide_iterations, free_switch=True
+                xi0, cand, goal, start, self.line, seed, iterations=self.cfg.guide_iterations, band=natural
             )
             status = "ok"
             if plan is None and st.get("partial") is not None:  # go along the guide as far as is safe
@@ -199,7 +200,7 @@ class MirrorPlanner:
         line: MirrorLine,
         seed: np.ndarray | None = None,
         iterations: int | None = None,
-        free_switch: bool = False,
+        band: bool = False,
     ) -> tuple[Plan | None, dict]:
         """SCP with Algorithm I inside, for one (direction, switch step) candidate toward ``goal``.
 
@@ -208,7 +209,8 @@ class MirrorPlanner:
         rollout of the solution replaces the reference only if it lowers the merit (true
         cost plus the exact penalty on penetration); otherwise the trust-region penalty
         is raised and the round repeats. Without improvement possible, the search stops.
-        ``free_switch``: the mirror-line row stays inactive. Returns the plan (None if no
+        ``band``: the switch lies in the band of ``switch_band`` toward ``goal`` (linearised
+        at each reference); otherwise on ``line`` in the natural order. Returns the plan (None if no
         clear one is confirmed by the truth model) and the candidate's statistics, with
         ``"partial"``: a safe stop short of the first contact, where there is one.
         """
@@ -219,7 +221,7 @@ class MirrorPlanner:
         clear_plans: list[Plan] = []  # clear on the planning model; verified on the truth model at the end
         st = {"iterations": 0, "qp_solves": 0, "nodes": 0, "status": "failed"}
         paper = cfg.linearisation == "paper"
-        mirror = cand.direction == self.shape_seeds.first_direction and not free_switch
+        mirror = cand.direction == self.shape_seeds.first_direction and not band
         ref: _Reference | None = None
         if paper:  # the paper's scheme: one model about a fixed angle, Algorithm I until clear
             lin = self.model.paper_linearisation(self.N, 0.5 * (xi0[XI_TH] + theta_t), 1.0 * cand.direction)
@@ -229,18 +231,31 @@ class MirrorPlanner:
             # zero; linearising about that standstill would freeze the heading.)
             real = seed if seed is not None else self.shape_seeds.seed(xi0, cand, line)
             u = planned_controls(real, cand, self.p, cfg.dt, cfg.model_substeps)
-            pen = self.checks.penetration(real)  # one footprint check per rollout, shared
-            ref = _Reference(real, u, pen, self.checks.merit(real, goal, theta_t, pen))
-            if not self.checks.collisions(real, cfg.check_margin, start, pen):
-                clear_plans.append(self._make_plan(cand, u, real, goal, theta_t, line))  # the seed is a plan too
+            ref, _, _ = self._score(
+                real, u, cand, goal, theta_t, start, line, band, clear_plans
+            )  # the seed is a plan too
         trust_scale = 1.0
-        for _ in range(cfg.max_iterations if iterations is None else iterations):
+        rounds = cfg.max_iterations if iterations is None else iterations
+        for it in range(cfg.max_iterations):
+            if it >= rounds and (clear_plans or not band):
+                break  # a switch outside its band: more rounds (to max_iterations) to move it in
             st["iterations"] += 1
             if not paper:
                 lin = self._linearise(ref, cand, theta_set, start)
             ref_real = ref.real if ref is not None else None
+            rows = self._band(cand, goal, ref_real) if band else None
             qp, disj, active, preferred = self.qp.build(
-                xi0, cand, c, lin, ref_real, theta_set, line, not paper, mirror=mirror, trust_scale=trust_scale
+                xi0,
+                cand,
+                c,
+                lin,
+                ref_real,
+                theta_set,
+                line,
+                not paper,
+                mirror=mirror,
+                trust_scale=trust_scale,
+                band=rows,
             )
             x = self._solve(qp, disj, active, preferred, st)
             if x is None:
@@ -248,23 +263,19 @@ class MirrorPlanner:
                 break
             u_planned = x[self.qp.u_index]
             real = self._rollout(xi0, u_planned, cand)
-            pen = self.checks.penetration(real)
-            hits = self.checks.collisions(real, cfg.check_margin, start, pen)  # closer than that: constrain
-            if not hits:
-                clear_plans.append(self._make_plan(cand, u_planned, real, goal, theta_t, line))
+            new, hits, usable = self._score(real, u_planned, cand, goal, theta_t, start, line, band, clear_plans)
             for i, k in hits:  # Algorithm I on the new solution too, accepted or not
                 theta_set[(i, k)] = None
             if paper:
                 if not hits:
                     break
-                ref = _Reference(real, u_planned, pen)
+                ref = new
                 continue
-            merit = self.checks.merit(real, goal, theta_t, pen)
-            if merit < ref.merit - 1e-6:
+            if new.merit < ref.merit - 1e-6:
                 converged = _converged(real, ref.real, cfg)
-                ref = _Reference(real, u_planned, pen, merit)
+                ref = new
                 trust_scale = max(trust_scale / 2.0, 0.25)
-                if not hits and (converged or self.checks.settled(real, goal, theta_t)):
+                if usable and (converged or self.checks.settled(real, goal, theta_t)):
                     break
             else:
                 trust_scale *= 4.0
@@ -276,6 +287,49 @@ class MirrorPlanner:
         elif ref is not None:  # no clear plan: the best iterate's safe start, if any
             st["partial"] = self._safe_stop(xi0, cand, ref, goal, theta_t, start, line)
         return best, st
+
+    def _band_args(self, cand: Candidate, goal: np.ndarray) -> tuple[int, float, float | None]:
+        """(gear after the switch, margin, slot width or None) of a plan's switch band: the
+        reach bound (Eqs. 1, 5, 6) toward the plan's goal, and Theorem 1's kerb bound
+        (Eq. 2) where a parallel plan reverses into the slot and then aims at the target."""
+        parallel = self.line.fixed  # Theorem 1's line: parallel parking
+        into_slot = parallel and cand.direction < 0 and self._is_target(goal)
+        margin = 1.0 if parallel else self.cfg.mirror_margin
+        return -cand.direction, margin, self.g.scenario.slot_width if into_slot else None
+
+    def _band(self, cand: Candidate, goal: np.ndarray, ref_real: np.ndarray | None) -> SwitchBand | None:
+        """The band's rows about the reference's switch heading (None: no switch)."""
+        if cand.switch is None or ref_real is None:
+            return None
+        th = float(ref_real[cand.switch * self.cfg.model_substeps, XI_TH])
+        g = np.array(goal, float)
+        g[2] = unwrap_near(g[2], th)
+        return switch_band(self.p, g, th, *self._band_args(cand, goal))
+
+    def _outside_band(self, band: bool, cand: Candidate, goal: np.ndarray, real: np.ndarray) -> float:
+        """How far [m] a rollout's switch lies outside its band (exact; 0 inside or without one)."""
+        if not band or cand.switch is None:
+            return 0.0
+        pose = real[cand.switch * self.cfg.model_substeps, :3]
+        return max(0.0, -band_margin(self.p, goal, pose, *self._band_args(cand, goal)))
+
+    def _is_target(self, goal: np.ndarray) -> bool:
+        t = self.g.target
+        return math.hypot(goal[0] - t[0], goal[1] - t[1]) < 1e-6 and abs(unwrap_near(t[2], goal[2]) - goal[2]) < 1e-6
+
+    def _score(self, real, u, cand, goal, theta_t, start, line, band: bool, clear_plans: list[Plan]):
+        """(reference, colliding (step, obstacle) pairs, usable) of a rollout; a usable one
+        (clear by ``check_margin``, its switch in its band) joins ``clear_plans``. The merit
+        adds the exact penalty on the switch's distance outside its band."""
+        cfg = self.cfg
+        pen = self.checks.penetration(real)  # one footprint check per rollout, shared
+        hits = self.checks.collisions(real, cfg.check_margin, start, pen)  # closer than that: constrain
+        outside = self._outside_band(band, cand, goal, real)
+        usable = not hits and outside <= cfg.band_tolerance
+        if usable:
+            clear_plans.append(self._make_plan(cand, u, real, goal, theta_t, line))
+        merit = self.checks.merit(real, goal, theta_t, pen) + cfg.w_slack * outside
+        return _Reference(real, u, pen, merit), hits, usable
 
     def _safe_stop(self, xi0, cand, ref: _Reference, goal, theta_t, start, line) -> Plan | None:
         """The reference's start, braking to a stand before its first contact (None: no contact)."""

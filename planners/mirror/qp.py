@@ -18,7 +18,7 @@ from mirrorpark_env.vehicle import VehicleParams
 from .config import MirrorPlannerConfig
 from .frames import FLIP, XI_A, XI_D, XI_TH, XI_V, XI_X, XI_Y, to_planned
 from .layout import iu, ix, switch_index, u_index, x_index
-from .mirror_line import MirrorLine
+from .mirror_line import MirrorLine, SwitchBand
 from .model import NU, NX
 from .obstacles import ObstacleRows, Rows
 from .plans import Candidate
@@ -38,7 +38,7 @@ class MirrorQP:
         self._dyn_rows, self._dyn_cols = _dynamics_pattern(N)
         self._n_dyn_rows = NX + NX * N
         self._eq_patterns: dict[int, CscPattern] = {}  # per switch-link step
-        self._g_line: sp.csc_matrix | None = None  # G of a QP without obstacle rows
+        self._g_switch: dict[int, CscPattern] = {}  # G of a QP without obstacle rows, per switch step
         self._bounds: dict[tuple[int, int | None], tuple[np.ndarray, np.ndarray]] = {}
         self._costs: dict[int | None, tuple] = {}  # this planner's view of ``cost_pattern``
 
@@ -73,8 +73,12 @@ class MirrorQP:
         trust: bool,
         mirror: bool = True,
         trust_scale: float = 1.0,
+        band: SwitchBand | None = None,
     ) -> tuple[QP, list[Disjunction], np.ndarray, list[int]]:
-        """(QP, disjunctions, each row's enforced lower bound, preferred rows) of one round."""
+        """(QP, disjunctions, each row's enforced lower bound, preferred rows) of one round.
+
+        The switch rows: ``band`` where given (with a switch), else the fixed ``line``
+        where ``mirror`` is on; neither: inactive."""
         cfg = self.cfg
         s = cand.switch
         vals, b = self._equalities(xi0, cand, lin)
@@ -85,7 +89,7 @@ class MirrorQP:
             for j, w in ((XI_X, cfg.w_trust_position), (XI_Y, cfg.w_trust_position), (XI_TH, cfg.w_trust_heading)):
                 c[self.x_index[1:, j]] -= 2.0 * trust_scale * w * pl[1:, j]
         rows = Rows()
-        self._mirror_row(rows, line, s is not None and mirror)
+        self._switch_rows(rows, s, line, s is not None and mirror, band if s is not None else None)
         if theta_set and ref_real is not None:
             self.obstacles.add(rows, cand, ref_real, theta_set)
         # Every row is soft: row + slack >= lower bound, slack >= 0 at w_slack per m (an
@@ -114,12 +118,26 @@ class MirrorQP:
         b = np.concatenate([xi0, c_.reshape(-1), [0.0, 0.0]])
         return vals, b
 
-    def _mirror_row(self, rows: Rows, ln: MirrorLine, on: bool) -> None:
-        """Row 0: the switch point on the mirror line (parallel, to 2 cm) or beyond it."""
+    def _switch_rows(self, rows: Rows, s: int | None, ln: MirrorLine, on: bool, band: SwitchBand | None) -> None:
+        """Rows 0 and 1: where the switch may lie. With ``band``: its rows on S and the
+        heading at step s. Else row 0 puts S on the fixed line (parallel, to 2 cm) or
+        beyond it (reverse, angle) where ``on``; unused rows are inactive."""
+        th = ix(s if s is not None else 0, XI_TH)
+        for r in range(2):
+            rows.g_rows += [r, r, r]
+            rows.g_cols += [self.iS, self.iS + 1, th]
+        if band is not None:
+            for r in range(2):
+                if r < len(band.lo):
+                    rows.g_vals += [*band.a_s[r], band.a_theta[r]]
+                    rows.h_l.append(band.lo[r]), rows.h_u.append(np.inf)
+                else:
+                    rows.g_vals += [0.0, 0.0, 0.0]
+                    rows.h_l.append(INACTIVE), rows.h_u.append(np.inf)
+                rows.active.append(rows.h_l[-1])
+            return
         n0, n1 = ln.normal
-        rows.g_rows += [0, 0]
-        rows.g_cols += [self.iS, self.iS + 1]
-        rows.g_vals += [n0, n1]
+        rows.g_vals += [n0, n1, 0.0, 0.0, 0.0, 0.0]
         bound = n0 * ln.target_xy[0] + n1 * ln.target_xy[1] + ln.distance
         if not on:
             rows.h_l.append(INACTIVE), rows.h_u.append(np.inf)
@@ -127,19 +145,25 @@ class MirrorQP:
             rows.h_l.append(bound), rows.h_u.append(bound + 0.02)  # on the line (to 2 cm)
         else:
             rows.h_l.append(bound), rows.h_u.append(np.inf)
-        rows.active.append(rows.h_l[-1])
+        rows.h_l.append(INACTIVE), rows.h_u.append(np.inf)
+        rows.active += rows.h_l[-2:]
 
     def _inequalities(self, rows: Rows, n_s: int, nz: int) -> sp.csc_matrix:
         """G with one slack column per row."""
-        if n_s == 1 and self._g_line is not None:  # the mirror-line row alone: the same G every time
-            return self._g_line
         # Triplets to CSC through CscPattern: scipy's COO route costs ~4x as much per call.
+        vals = np.concatenate([rows.g_vals, np.ones(n_s)])
+        if n_s == 2:  # the switch rows alone: one pattern per switch step, refilled
+            key = rows.g_cols[2]
+            if key not in self._g_switch:
+                self._g_switch[key] = CscPattern(
+                    np.concatenate([rows.g_rows, [0, 1]]),
+                    np.concatenate([rows.g_cols, self.nz + np.arange(2)]),
+                    (2, nz),
+                )
+            return self._g_switch[key].matrix(vals)
         g_rows = np.concatenate([rows.g_rows, np.arange(n_s)])
         g_cols = np.concatenate([rows.g_cols, self.nz + np.arange(n_s)])
-        G = CscPattern(g_rows, g_cols, (n_s, nz)).matrix(np.concatenate([rows.g_vals, np.ones(n_s)]))
-        if n_s == 1:
-            self._g_line = G
-        return G
+        return CscPattern(g_rows, g_cols, (n_s, nz)).matrix(vals)
 
     def _eq_pattern(self, s: int | None) -> CscPattern:
         """Pattern of the equality rows for switch step ``s`` (its link row names xi_s)."""
