@@ -116,3 +116,18 @@ def test_every_executed_switch_in_the_natural_order_lies_in_its_plans_band(case_
         assert inside > -0.01, f"plan {j}: switch {inside:.4f} m outside its band"
         checked += 1
     assert checked >= 1
+
+
+def test_the_switch_step_is_chosen_by_optimal_cost():
+    """A plan with a switch is solved at the guide's timing and at other seed speeds (other
+    switch steps); the plan used is the one of lowest optimal cost."""
+    policy = _Recording()
+    run_episode(gym.make("MirrorPark-v0"), policy, SWITCHING[0])
+    compared = [p for p in policy.plans if len(p.stats.detail["candidates"]) > 1]
+    assert compared
+    for plan in compared:
+        tried = plan.stats.detail["candidates"]
+        assert len({c.switch for c, _, _ in tried}) == len(tried)  # distinct switch steps
+        costs = [cost for _, cost, _ in tried if cost is not None]
+        assert plan.cost == pytest.approx(min(costs), abs=1e-3)
+        assert plan.candidate in [c for c, cost, _ in tried if cost == min(costs)]

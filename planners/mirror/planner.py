@@ -116,11 +116,7 @@ class MirrorPlanner:
         detail = {"guide_cost": guide.cost if guide else math.inf}
         plan = None
         if guide is not None:
-            cand, seed, goal = self.guided_seed.seed(xi0, guide)
-            natural = cand.direction == self.shape_seeds.first_direction  # the order of the paper's mirror line
-            plan, st = self.solve_candidate(
-                xi0, cand, goal, start, self.line, seed, iterations=self.cfg.guide_iterations, band=natural
-            )
+            plan, st, cand, goal, tried = self._solve_guided(xi0, guide, start)
             status = "ok"
             if plan is None and st.get("partial") is not None:  # go along the guide as far as is safe
                 plan, status = st["partial"], "partial"
@@ -130,7 +126,7 @@ class MirrorPlanner:
             self.last_stats = PlanStats(time.perf_counter() - t0, status, detail=detail)
             return None
         detail = {
-            "candidates": [(cand, round(plan.cost, 3), st["status"])],
+            "candidates": tried,
             "guided": True,
             "goal": tuple(round(float(v), 3) for v in goal),
             **detail,
@@ -140,6 +136,32 @@ class MirrorPlanner:
         )
         self.last_stats = stats
         return replace(plan, stats=stats)
+
+    def _solve_guided(self, xi0: np.ndarray, guide, start: Start):
+        """The guided candidate, and for a plan with a switch the same manoeuvre seeded at
+        the other ``switch_speeds`` (other switch steps, same goal): the plan of lowest
+        optimal cost wins. Returns (plan or None, statistics, candidate, goal, tried)."""
+        cand, seed, goal = self.guided_seed.seed(xi0, guide)
+        variants = [(cand, seed)]
+        if cand.switch is not None:
+            for v in self.cfg.switch_speeds:
+                c2, s2, g2 = self.guided_seed.seed(xi0, guide, v)
+                if c2.switch is not None and np.allclose(g2, goal) and all(c2 != c for c, _ in variants):
+                    variants.append((c2, s2))
+        natural = cand.direction == self.shape_seeds.first_direction  # the order of the paper's mirror line
+        best = best_st = None
+        tried, totals, net = [], {"iterations": 0, "qp_solves": 0, "nodes": 0}, False
+        for c, seed in variants:
+            plan, st = self.solve_candidate(
+                xi0, c, goal, start, self.line, seed, iterations=self.cfg.guide_iterations, band=natural
+            )
+            for k in ("iterations", "qp_solves", "nodes"):
+                totals[k] += st[k]
+            net = net or st.get("safety_net", False)
+            tried.append((c, None if plan is None else round(plan.cost, 3), st["status"]))
+            if best_st is None or (plan is not None and (best is None or plan.cost < best.cost)):
+                best, best_st, cand = plan, st, c
+        return best, {**best_st, **totals, "safety_net": net}, cand, goal, tried
 
     def _plan_multistart(
         self, state: VehicleState, xi0: np.ndarray, start: Start, candidates: list[Candidate] | None, t0: float

@@ -38,14 +38,17 @@ class GuidedSeed:
         self.target = np.array(geometry.target, float)
         self.tracker_cfg = TrackerConfig(cruise_speed=cfg.seed_speed, accel=cfg.seed_accel, decel=cfg.seed_accel)
 
-    def seed(self, xi0: np.ndarray, guide: Guide) -> tuple[Candidate, np.ndarray, np.ndarray]:
+    def seed(
+        self, xi0: np.ndarray, guide: Guide, speed: float | None = None
+    ) -> tuple[Candidate, np.ndarray, np.ndarray]:
         """(candidate, real rollout at half steps, goal pose) from tracking the guide's first
-        two gear segments, cut so that the car stands by N."""
+        two gear segments at cruise ``speed`` (default: the config's), cut so that the car
+        stands by N."""
         poses = guide.path.poses
         end = guide.first_switch()
         for _ in range(3):
             path = Path.from_poses(poses[: end + 1])
-            real, segs, reached = self.track(xi0, path)
+            real, segs, reached = self.track(xi0, path, speed)
             if segs[-1] < 0 or reached[-1] >= end:  # stood at the portion's end within N
                 break
             back = max(0, self.N - 20)  # cut where the car was 2 s before the horizon
@@ -59,10 +62,14 @@ class GuidedSeed:
         goal[2] = unwrap_near(goal[2], xi0[XI_TH])
         return Candidate(int(gear), s), real, goal
 
-    def track(self, xi0: np.ndarray, path: Path) -> tuple[np.ndarray, list[int], list[int]]:
+    def track(self, xi0: np.ndarray, path: Path, speed: float | None = None) -> tuple[np.ndarray, list[int], list[int]]:
         """Roll the planning model out under the path tracker for N steps: the half-step real
         states, the tracker's segment per control step (-1 once done), the pose index reached."""
-        tracker = PathTracker(path, self.p, self.tracker_cfg)
+        cfg = self.tracker_cfg
+        if speed is not None:  # a slower or faster seed: the cusp at another step
+            scale = speed / cfg.cruise_speed
+            cfg = cfg.model_copy(update={"cruise_speed": speed, "accel": cfg.accel * scale, "decel": cfg.decel * scale})
+        tracker = PathTracker(path, self.p, cfg)
         state = tuple(float(v) for v in xi0[:6])
         out, segs, reached = [(*state, 0.0)], [0], [0]
         command, step = tracker.command_at, self.coarse.step_rows
