@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field
 
@@ -47,7 +47,8 @@ class MirrorPlannerConfig(StrictModel):
     guide: bool = True  # seed each plan from a geometric guide (guide.py); SCP only
     guide_iterations: int = Field(2, ge=1, le=1000)  # SCP rounds on a guided candidate
     seed_speed: float = Field(1.5, gt=0, le=3)  # [m/s] cruise speed of the guided seed rollout
-    switch_speeds: tuple[float, ...] = (1.1, 2.0)  # [m/s] more seed timings for a plan with a switch: other switch steps
+    # [m/s] more seed speeds for a plan with a switch: other switch steps, the cheapest plan used
+    switch_speeds: tuple[Annotated[float, Field(gt=0, le=3)], ...] = (1.1, 2.0)
     seed_accel: float = Field(1.5, gt=0, le=3)  # [m/s^2] its acceleration and planned deceleration
 
 
