@@ -9,6 +9,8 @@ from pathlib import Path
 
 from mirrorpark_env.config import PARKING_TYPES
 
+from . import registry
+
 
 def cmd_grid(args: argparse.Namespace) -> int:
     from mirrorpark_env.config import GridConfig, default_grid, load
@@ -204,7 +206,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument(
         "--planner",
         required=True,
-        help="mirror, mirror-paper, hybrid-astar, or rl:PATH (a model.zip from train-rl; "
+        help=f"{', '.join(registry.available())}, or rl:PATH (a model.zip from train-rl; "
         "loading it runs pickled code: name only files you trust)",
     )
     case_args(e)
@@ -272,6 +274,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="continue the interrupted run in DIR from its last checkpoint (--steps may raise its total)",
     )
     t.add_argument(
+        "--finetune",
+        action="store_true",
+        help="with --demos: after cloning, SAC/TQC + HER for --steps with the demonstrations in the replay "
+        "buffer and a Q-filtered BC term",
+    )
+    t.add_argument(
         "--dagger-rounds",
         type=_positive_int,
         default=None,
@@ -303,12 +311,15 @@ def _rl_config(args: argparse.Namespace):
 def cmd_train_rl(args: argparse.Namespace) -> int:
     if args.dagger_rounds and not args.demos:
         raise ValueError("--dagger-rounds: needs --demos (DAgger starts from the cloned policy)")
+    if args.finetune and (not args.demos or args.dagger_rounds):
+        raise ValueError("--finetune: needs --demos and no --dagger-rounds (it starts from the cloned policy)")
     try:
         import stable_baselines3  # noqa: F401
         import torch  # noqa: F401
 
         from planners.rl.bc import behaviour_clone
         from planners.rl.dagger import dagger
+        from planners.rl.finetune import finetune
         from planners.rl.train import train
     except ImportError as err:
         raise ValueError(
@@ -323,6 +334,8 @@ def cmd_train_rl(args: argparse.Namespace) -> int:
     out = args.resume or args.out
     if args.resume:
         summary = train(cfg, out, resume=True)
+    elif args.demos and args.finetune:
+        summary = finetune(cfg, args.demos, out)
     elif args.demos and args.dagger_rounds:
         summary = dagger(cfg, args.demos, out, rounds=args.dagger_rounds)
     elif args.demos:

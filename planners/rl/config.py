@@ -35,6 +35,16 @@ class BCConfig(StrictModel):
     successes_only: bool = True  # clone only the episodes that ended parked
 
 
+class FinetuneConfig(StrictModel):
+    """RL fine-tuning from demonstrations (``train-rl --demos --finetune``, ``finetune.py``)."""
+
+    critic_warmup_steps: int = Field(2000, ge=0)  # critic updates on the demonstrations before RL
+    bc_weight: float = Field(1.0, ge=0)  # weight of the Q-filtered BC term at the start ...
+    bc_anneal_steps: int = Field(20_000, ge=1)  # ... falling linearly to 0 over these env steps
+    bc_every: int = Field(10, ge=1)  # env steps between BC updates
+    bc_gradient_steps: int = Field(1, ge=1)  # BC updates each time
+
+
 class RLConfig(StrictModel):
     algo: Literal["sac", "tqc"] = "sac"
     total_steps: int = Field(200_000, ge=1)
@@ -52,6 +62,7 @@ class RLConfig(StrictModel):
     curriculum: CurriculumConfig = CurriculumConfig()
     eval: EvalConfig = EvalConfig()
     bc: BCConfig = BCConfig()
+    finetune: FinetuneConfig = FinetuneConfig()
     checkpoint_every_steps: int = Field(50_000, ge=1)
     parking_types: list[ParkingTypeName] = Field(default_factory=lambda: list(PARKING_TYPES), min_length=1)
     device: str = "auto"
