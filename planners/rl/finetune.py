@@ -96,12 +96,20 @@ def finetune(cfg: RLConfig, demos: str | Path, out: str | Path, progress: bool =
     """BC, demonstrations in the buffer, critic warm-up, then SAC/TQC + HER with the
     Q-filtered BC term for ``cfg.total_steps``; ``model.zip`` and ``train.json`` in ``out``."""
     import torch
-    from stable_baselines3.common.callbacks import BaseCallback, CallbackList, EvalCallback
+    from stable_baselines3.common.callbacks import BaseCallback, CallbackList
     from stable_baselines3.common.logger import Logger, make_output_format
 
     from mirrorpark_env.grid import Grid
 
-    from .train import learning_curve, make_eval_env, make_model, make_train_env, plot_learning_curve
+    from .train import (
+        eval_callback,
+        learning_curve,
+        make_eval_env,
+        make_model,
+        make_train_env,
+        plot_learning_curve,
+        progress_callback,
+    )
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -129,28 +137,12 @@ def finetune(cfg: RLConfig, demos: str | Path, out: str | Path, progress: bool =
                 self.logger.record("train/bc_weight", weight)
             return True
 
-    class Progress(BaseCallback):
-        def _on_training_start(self) -> None:
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=cfg.total_steps, desc="fine-tune", unit="step", disable=not progress)
-
-        def _on_step(self) -> bool:
-            self.bar.update(self.model.num_timesteps - self.bar.n)
-            return True
-
-        def _on_training_end(self) -> None:
-            self.bar.close()
-
-    evaluate = EvalCallback(
-        make_eval_env(cfg, grid),
-        n_eval_episodes=cfg.eval.episodes,
-        eval_freq=cfg.eval.every_steps,
-        log_path=str(out),
-        deterministic=True,
-        verbose=0,
-    )
-    model.learn(total_timesteps=cfg.total_steps, callback=CallbackList([BCTerm(), Progress(), evaluate]))
+    callbacks = [
+        BCTerm(),
+        progress_callback(cfg.total_steps, "fine-tune", progress),
+        eval_callback(cfg, make_eval_env(cfg, grid), out),
+    ]
+    model.learn(total_timesteps=cfg.total_steps, callback=CallbackList(callbacks))
     wall = time.perf_counter() - t0
     curve = learning_curve(out)
     if curve:

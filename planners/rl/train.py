@@ -91,7 +91,7 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True, resume: bool = 
     ``resume``: continue from the latest checkpoint in ``out`` (its weights, replay buffer
     and step count) up to ``cfg.total_steps``, not from zero."""
     import torch
-    from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback, EvalCallback
+    from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
     from stable_baselines3.common.logger import Logger, make_output_format
 
     out = Path(out)
@@ -125,34 +125,14 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True, resume: bool = 
                 self.logger.record("train/curriculum_level", level)
             return True
 
-    class Progress(BaseCallback):  # tqdm (a core dependency), not SB3's rich bar
-        def _on_training_start(self) -> None:
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=cfg.total_steps, desc=f"train-rl {cfg.algo}", unit="step", disable=not progress)
-
-        def _on_step(self) -> bool:
-            self.bar.update(self.model.num_timesteps - self.bar.n)
-            return True
-
-        def _on_training_end(self) -> None:
-            self.bar.close()
-
     callbacks = CallbackList(
         [
             Curriculum(),
-            Progress(),
+            progress_callback(cfg.total_steps, f"train-rl {cfg.algo}", progress),
             CheckpointCallback(
                 cfg.checkpoint_every_steps, str(out / "checkpoints"), name_prefix=cfg.algo, save_replay_buffer=True
             ),
-            EvalCallback(
-                eval_env,
-                n_eval_episodes=cfg.eval.episodes,
-                eval_freq=cfg.eval.every_steps,
-                log_path=str(out),
-                deterministic=True,
-                verbose=0,
-            ),
+            eval_callback(cfg, eval_env, out),
         ]
     )
     t0 = time.perf_counter()
@@ -177,6 +157,40 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True, resume: bool = 
     if curve:
         plot_learning_curve(curve, out / "learning_curve.png")
     return summary
+
+
+def progress_callback(total: int, desc: str, enabled: bool):
+    """A tqdm bar over environment steps (tqdm is a core dependency; SB3's bar needs rich)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Progress(BaseCallback):
+        def _on_training_start(self) -> None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc=desc, unit="step", disable=not enabled)
+
+        def _on_step(self) -> bool:
+            self.bar.update(self.model.num_timesteps - self.bar.n)
+            return True
+
+        def _on_training_end(self) -> None:
+            self.bar.close()
+
+    return Progress()
+
+
+def eval_callback(cfg: RLConfig, eval_env: gym.Env, out: Path):
+    """The periodic ISO evaluation on fixed cases, saved in ``out/evaluations.npz``."""
+    from stable_baselines3.common.callbacks import EvalCallback
+
+    return EvalCallback(
+        eval_env,
+        n_eval_episodes=cfg.eval.episodes,
+        eval_freq=cfg.eval.every_steps,
+        log_path=str(out),
+        deterministic=True,
+        verbose=0,
+    )
 
 
 def learning_curve(out: str | Path) -> list[tuple[int, float, float]]:
