@@ -253,9 +253,8 @@ class MirrorPlanner:
             # zero; linearising about that standstill would freeze the heading.)
             real = seed if seed is not None else self.shape_seeds.seed(xi0, cand, line)
             u = planned_controls(real, cand, self.p, cfg.dt, cfg.model_substeps)
-            ref, _, _ = self._score(
-                real, u, cand, goal, theta_t, start, line, band, clear_plans
-            )  # the seed is a plan too
+            # The seed is a plan too.
+            ref, _, _ = self._score(real, u, cand, goal, theta_t, start, line, band, clear_plans)
         trust_scale = 1.0
         rounds = cfg.max_iterations if iterations is None else iterations
         for it in range(cfg.max_iterations):
