@@ -40,6 +40,9 @@ def test_rl_config_rejects_bad_values_naming_the_field(tmp_path):
         load_rl_config(overrides={"algo": "ppo"})
     with pytest.raises(ValueError, match=r"rl.yaml: gamma: Input should be less than or equal to 1"):
         load_rl_config(overrides={"gamma": 1.5})
+    with pytest.raises(ValueError, match=r"rl.yaml: ent_coef"):
+        load_rl_config(overrides={"ent_coef": "automatic"})
+    assert load_rl_config(overrides={"ent_coef": "auto_0.01"}).ent_coef == "auto_0.01"
 
 
 def test_her_relabelled_rewards_are_the_envs_compute_reward(require_module, tmp_path):

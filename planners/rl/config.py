@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import Field
 
@@ -53,6 +53,8 @@ class RLConfig(StrictModel):
     buffer_size: int = Field(1_000_000, ge=1000)
     batch_size: int = Field(256, ge=1)
     learning_rate: float = Field(1e-3, gt=0, le=1)
+    # SAC/TQC entropy coefficient: a fixed number, or "auto" / "auto_<initial value>" (learned)
+    ent_coef: Annotated[str, Field(pattern=r"^auto(_[0-9]*\.?[0-9]+)?$")] | Annotated[float, Field(gt=0)] = "auto"
     gamma: float = Field(0.95, gt=0, le=1)
     tau: float = Field(0.05, gt=0, le=1)
     train_freq: int = Field(1, ge=1)

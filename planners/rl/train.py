@@ -56,6 +56,7 @@ def make_model(cfg: RLConfig, env: gym.Env):
         buffer_size=min(cfg.buffer_size, max(cfg.total_steps, 1000)),
         batch_size=cfg.batch_size,
         learning_rate=cfg.learning_rate,
+        ent_coef=cfg.ent_coef,
         gamma=cfg.gamma,
         tau=cfg.tau,
         train_freq=cfg.train_freq,
