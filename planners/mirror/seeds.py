@@ -42,8 +42,8 @@ class GuidedSeed:
         self, xi0: np.ndarray, guide: Guide, speed: float | None = None
     ) -> tuple[Candidate, np.ndarray, np.ndarray]:
         """(candidate, real rollout at half steps, goal pose) from tracking the guide's first
-        two gear segments at cruise ``speed`` (default: the config's), cut so that the car
-        stands by N."""
+        two gear segments at cruise ``speed`` (default: the config's; accelerations scaled
+        alike), cut so that the car stands by N."""
         poses = guide.path.poses
         end = guide.first_switch()
         for _ in range(3):
@@ -68,7 +68,9 @@ class GuidedSeed:
         cfg = self.tracker_cfg
         if speed is not None:  # a slower or faster seed: the cusp at another step
             scale = speed / cfg.cruise_speed
-            cfg = cfg.model_copy(update={"cruise_speed": speed, "accel": cfg.accel * scale, "decel": cfg.decel * scale})
+            cfg = TrackerConfig(
+                **{**cfg.model_dump(), "cruise_speed": speed, "accel": cfg.accel * scale, "decel": cfg.decel * scale}
+            )
         tracker = PathTracker(path, self.p, cfg)
         state = tuple(float(v) for v in xi0[:6])
         out, segs, reached = [(*state, 0.0)], [0], [0]
