@@ -90,6 +90,7 @@ def test_finetune_buffers_the_demos_and_keeps_the_cloned_actor_through_the_warm_
     assert not all(torch.equal(critic[k], v) for k, v in model.critic.state_dict().items())
     kept = q_filtered_bc_step(model, obs, actions, 1.0, np.random.default_rng(0))
     assert 0.0 <= kept <= 1.0
+    assert q_filtered_bc_step(model, obs, actions, 1.0, np.random.default_rng(0), q_filter=False) == 1.0
 
     # The whole recipe from the command line, on a tiny budget.
     yaml = tmp_path / "rl.yaml"

@@ -43,6 +43,7 @@ class FinetuneConfig(StrictModel):
     bc_anneal_steps: int = Field(20_000, ge=1)  # ... falling linearly to 0 over these env steps
     bc_every: int = Field(10, ge=1)  # env steps between BC updates
     bc_gradient_steps: int = Field(1, ge=1)  # BC updates each time
+    q_filter: bool = True  # BC only where the critic rates the expert's action above the actor's
 
 
 class RLConfig(StrictModel):

@@ -72,9 +72,12 @@ def warm_up_critic(model, gradient_steps: int) -> None:
     model.actor.optimizer.state.clear()  # Adam's moments belonged to the discarded steps
 
 
-def q_filtered_bc_step(model, obs: dict[str, np.ndarray], actions: np.ndarray, weight: float, rng) -> float:
+def q_filtered_bc_step(
+    model, obs: dict[str, np.ndarray], actions: np.ndarray, weight: float, rng, q_filter: bool = True
+) -> float:
     """One actor step on ``weight`` x the mean squared gap to the expert's action over a
-    batch of demonstration states, where the critic prefers the expert's action."""
+    batch of demonstration states, where the critic prefers the expert's action (all of
+    them without ``q_filter``); the share of states kept."""
     import torch
 
     idx = rng.integers(0, len(actions), size=model.batch_size)
@@ -84,7 +87,7 @@ def q_filtered_bc_step(model, obs: dict[str, np.ndarray], actions: np.ndarray, w
     with torch.no_grad():
         q_expert = torch.cat(model.critic(batch, expert), dim=1).min(dim=1).values
         q_pi = torch.cat(model.critic(batch, pi.detach()), dim=1).min(dim=1).values
-        keep = (q_expert > q_pi).float()
+        keep = (q_expert > q_pi).float() if q_filter else torch.ones_like(q_pi)
     loss = weight * (keep * ((pi - expert) ** 2).sum(dim=1)).mean()
     model.actor.optimizer.zero_grad()
     loss.backward()
@@ -133,7 +136,7 @@ def finetune(cfg: RLConfig, demos: str | Path, out: str | Path, progress: bool =
             weight = ft.bc_weight * max(0.0, 1.0 - t / ft.bc_anneal_steps)
             if weight > 0 and t % ft.bc_every == 0:
                 for _ in range(ft.bc_gradient_steps):
-                    kept.append(q_filtered_bc_step(self.model, obs, actions, weight, rng))
+                    kept.append(q_filtered_bc_step(self.model, obs, actions, weight, rng, ft.q_filter))
                 self.logger.record("train/bc_weight", weight)
             return True
 
