@@ -128,10 +128,7 @@ def switch_band(
     """
     gx, gy, gth = (float(v) for v in goal)
     err = theta_ref - gth
-    sign_e = 1.0 if err >= 0.0 else -1.0
-    side = sign_e * after  # the arc after the switch comes from this side of the goal's axis
-    n = right_normal(gth)
-    a_s = (side * n[0], side * n[1])
+    sign_e, a_s = _arc_side(err, after, gth)
     l_goal = a_s[0] * gx + a_s[1] * gy  # l = a_s . S - l_goal
     psi = abs(err)
     r = margin * params.r_min
@@ -148,6 +145,15 @@ def switch_band(
     return SwitchBand(tuple(rows_s), tuple(rows_th), tuple(lo))
 
 
+def _arc_side(err: float, after: int, goal_heading: float) -> tuple[float, tuple[float, float]]:
+    """(sign of the heading error, unit normal of the goal's axis toward the side the last
+    arc comes from): a switch with heading error ``err`` that drives in gear ``after``."""
+    sign_e = 1.0 if err >= 0.0 else -1.0
+    n = right_normal(goal_heading)
+    side = sign_e * after
+    return sign_e, (side * n[0], side * n[1])
+
+
 def band_margin(
     params: VehicleParams,
     goal,
@@ -161,9 +167,8 @@ def band_margin(
     gx, gy, gth = (float(v) for v in goal)
     x, y, th = (float(v) for v in pose)
     err = math.remainder(th - gth, 2 * math.pi)
-    side = (1.0 if err >= 0.0 else -1.0) * after
-    n = right_normal(gth)
-    offset = side * (n[0] * (x - gx) + n[1] * (y - gy))
+    _, a_s = _arc_side(err, after, gth)
+    offset = a_s[0] * (x - gx) + a_s[1] * (y - gy)
     psi = abs(err)
     inside = offset - margin * reach_lower_bound(params, psi)
     if slot_width is not None:
