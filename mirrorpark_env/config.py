@@ -119,6 +119,7 @@ class CriteriaConfig(StrictModel):
     min_margin_perpendicular: float = Field(0.1, ge=0, le=2)
     stop_speed: float = Field(0.05, gt=0, le=1)
     time_limit_s: float = Field(180.0, gt=0, le=3600)
+    target_position_tol: float = Field(0.15, gt=0, le=5)  # [m] layouts without a slot: rear axle to target
 
 
 class RewardConfig(StrictModel):
@@ -136,6 +137,11 @@ class RenderConfig(StrictModel):
     scaling: float = Field(26.0, gt=0, le=500)
 
 
+class LidarConfig(StrictModel):
+    rays: int = Field(0, ge=0, le=720)  # 0: no lidar in the observation
+    max_range: float = Field(10.0, gt=0, le=200)  # [m]
+
+
 class EnvConfig(StrictModel):
     """Everything ``MirrorPark-v0`` can be configured with."""
 
@@ -146,6 +152,7 @@ class EnvConfig(StrictModel):
     parking_types: list[ParkingTypeName] = Field(default_factory=lambda: list(PARKING_TYPES), min_length=1)
     scene_margin: float = Field(25.0, ge=5, le=200)
     render: RenderConfig = RenderConfig()
+    lidar: LidarConfig = LidarConfig()
     vehicle: VehicleConfig  # default_env() reads configs/vehicle.yaml
 
     @model_validator(mode="after")

@@ -14,6 +14,10 @@ is documented in docs/verdicts.md):
 
 All types also need: |heading error| <= 3 deg, parking time < 180 s, no collision, the
 whole outline inside the slot, and the car stopped.
+
+A layout without a slot has no sides to measure: its one margin ``M_pos`` is
+``target_position_tol`` less the rear axle's distance from the target's, and success needs
+it >= 0 with the same heading, time, collision and standstill checks.
 """
 
 from __future__ import annotations
@@ -55,6 +59,11 @@ class SuccessCriteria:
         self.vehicle = geometry.vehicle
         self.heading_tol = math.radians(cfg.heading_tol_deg)
         self.target_heading = geometry.target[2]
+        self.no_slot = geometry.slot is None
+        if self.no_slot:
+            self.margin_names, self._min_margin, self._strict = ("M_pos",), 0.0, False
+            self._pos_tol = cfg.target_position_tol
+            return
         names = [n for n, _ in geometry.slot_edges]
         self._edge_index = {n: i for i, n in enumerate(names)}
         self._normals = np.array([hp.normal for _, hp in geometry.slot_edges])  # (4, 2)
@@ -91,6 +100,8 @@ class SuccessCriteria:
         return corners @ self._normals.T - self._offsets
 
     def margins(self, x: float, y: float, theta: float) -> dict[str, float]:
+        if self.no_slot:
+            return {"M_pos": self._pos_tol - math.hypot(x - self.geometry.target[0], y - self.geometry.target[1])}
         return self._margins_from(self._edge_distances_at(x, y, theta))
 
     def _edge_distances_at(self, x: float, y: float, theta: float) -> list[list[float]]:
@@ -117,10 +128,14 @@ class SuccessCriteria:
         elapsed: float,
         collided: bool,
     ) -> Verdict:
-        d = self._edge_distances_at(x, y, theta)
-        margins = self._margins_from(d)
         herr = wrap_angle(theta - self.target_heading)
-        inside = min(min(row) for row in d) >= -1e-12
+        if self.no_slot:
+            margins = self.margins(x, y, theta)
+            inside = True  # no slot to be inside of
+        else:
+            d = self._edge_distances_at(x, y, theta)
+            margins = self._margins_from(d)
+            inside = min(min(row) for row in d) >= -1e-12
         stopped = abs(v) < self.cfg.stop_speed
         lowest = min(margins.values())
         margins_ok = lowest > self._min_margin if self._strict else lowest >= self._min_margin - 1e-12

@@ -6,6 +6,7 @@ The class docstring of ``MirrorParkEnv`` is the environment's specification.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -17,7 +18,9 @@ from .criteria import SuccessCriteria
 from .geometry import COLLISION_TOL
 from .grid import TYPES, grid_for
 from .rendering import Renderer
-from .scenario import Scenario, ScenarioGeometry
+from .layout import Layout
+from .lidar import Lidar
+from .scenario import Scenario, ScenarioGeometry, grid_layout
 from .vehicle import TruthModel, VehicleParams, VehicleState, from_action
 
 POS_SCALE = 10.0  # [m] scale of positions in observations and goals
@@ -55,12 +58,21 @@ class MirrorParkEnv(gym.Env):
     where ``reached`` is the goal pose within 0.15 m and 3 deg. The episode's verdict is
     ``info["is_success"]``, the ISO check.
 
+    With ``lidar.rays`` > 0 the dict also holds ``lidar`` (rays,): ranges from the body
+    centre to the obstacles, divided by ``lidar.max_range`` (``lidar.Lidar``), so that an
+    agent can act in a layout it has not seen. In a layout the sizes are the slot's (0
+    without a slot) and the road width the layout's (0 where it names none).
+
     ## Starting State
-    Standing (v = a = delta = 0) at the scenario's start pose: a random Table III case of
-    the configured parking types, or ``options={"scenario": Scenario | case id}``.
+    Standing (v = a = delta = 0) at the scene's start pose: a random Table III case of
+    the configured parking types, ``options={"scenario": Scenario | case id}``, or any
+    layout: ``options={"layout": Layout | path}`` (``layout_io.load_layout``; a grid case
+    is built through the same ``Layout.build``).
 
     ## Episode End
-    Terminated on ISO success, collision or leaving the scene; truncated after
+    Terminated on ISO success (in a layout without a slot: the target pose within
+    ``criteria.target_position_tol`` and the heading tolerance), collision or leaving the
+    scene (the rear axle outside the geometry's ``axle_box``); truncated after
     ``max_episode_steps`` = 1800 steps (180 s at the default 0.1 s step, the ISO time
     limit; declared in the registration: pass ``max_episode_steps`` to ``gym.make`` with
     another ``dt``).
@@ -101,13 +113,15 @@ class MirrorParkEnv(gym.Env):
 
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         goal = spaces.Box(-np.inf, np.inf, shape=(4,), dtype=np.float32)
-        self.observation_space = spaces.Dict(
-            {
-                "observation": spaces.Box(-np.inf, np.inf, shape=(13,), dtype=np.float32),
-                "achieved_goal": goal,
-                "desired_goal": goal,
-            }
-        )
+        obs_spaces = {
+            "observation": spaces.Box(-np.inf, np.inf, shape=(13,), dtype=np.float32),
+            "achieved_goal": goal,
+            "desired_goal": goal,
+        }
+        if self.cfg.lidar.rays:
+            obs_spaces["lidar"] = spaces.Box(0.0, 1.0, shape=(self.cfg.lidar.rays,), dtype=np.float32)
+        self.observation_space = spaces.Dict(obs_spaces)
+        self._lidar = None
         self.geometry: ScenarioGeometry | None = None
         self._pool: np.ndarray | None = None
         self._heading_tol = math.radians(self.cfg.reward.goal_heading_tol_deg)
@@ -116,11 +130,13 @@ class MirrorParkEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         options = options or {}
-        unknown = set(options) - {"scenario"}
+        unknown = set(options) - {"scenario", "layout"}
         if unknown:
-            raise ValueError(f"reset options: unknown {sorted(unknown)}; allowed: ['scenario']")
-        scenario = self._scenario_from(options.get("scenario"))
-        g = scenario.build(self.params, self.cfg.scene_margin)
+            raise ValueError(f"reset options: unknown {sorted(unknown)}; allowed: ['layout', 'scenario']")
+        if options.get("layout") is not None and options.get("scenario") is not None:
+            raise ValueError("reset options: give 'scenario' or 'layout', not both")
+        layout = self._layout_from(options)
+        g = layout.build(self.params)
         self.geometry = g
         self.criteria = SuccessCriteria(g, self.cfg.criteria)
         s = g.start
@@ -137,20 +153,32 @@ class MirrorParkEnv(gym.Env):
         self.min_clearance = float(self._gaps(np.array([[s.x, s.y, s.theta]]))[0])
         self.speed_at_min_clearance = 0.0
         self.min_clearance_away, self.speed_at_min_clearance_away = math.inf, 0.0
-        self._x_range = (g.bounds[0] + self.params.length, g.bounds[1] - self.params.length)
-        sc = scenario
-        onehot = [1.0 if t is sc.parking_type else 0.0 for t in TYPES]
-        self._static_obs = np.array(
-            [sc.road_width / POS_SCALE, sc.slot_length / POS_SCALE, sc.slot_width / POS_SCALE, *onehot]
-        )
+        onehot = [1.0 if t is g.parking_type else 0.0 for t in TYPES]
+        sizes = [0.0 if math.isnan(v) else v / POS_SCALE for v in (g.road_width, g.slot_length, g.slot_width)]
+        self._static_obs = np.array([*sizes, *onehot])
+        if self.cfg.lidar.rays:
+            self._lidar = Lidar(g.obstacles, self.cfg.lidar.rays, self.cfg.lidar.max_range)
         tx, ty, tth = g.target
         self._desired = np.array([tx / POS_SCALE, ty / POS_SCALE, math.cos(tth), math.sin(tth)], dtype=np.float32)
         if self._renderer is not None:
             self._renderer.reset(g, s.x, s.y, s.theta)
         obs = self._obs()
         info = self._info(False)
-        info.update(scenario=scenario, case_id=scenario.case_id, geometry=g)
+        info.update(scenario=layout.scenario, case_id=layout.case_id, geometry=g, layout=layout)
         return obs, info
+
+    def _layout_from(self, options: dict[str, Any]) -> Layout:
+        spec = options.get("layout")
+        if spec is None:
+            sc = self._scenario_from(options.get("scenario"))
+            return grid_layout(sc, self.params, self.cfg.scene_margin)
+        if isinstance(spec, Layout):
+            return spec
+        if isinstance(spec, (str, Path)):
+            from .layout_io import load_layout
+
+            return load_layout(spec)
+        raise ValueError(f"reset options: 'layout' must be a Layout or a file path, got {type(spec).__name__}")
 
     def _scenario_from(self, spec: Scenario | str | None) -> Scenario:
         if isinstance(spec, Scenario):
@@ -198,7 +226,8 @@ class MirrorParkEnv(gym.Env):
         self.time = round(self._substeps * self.model.h, 9)  # no drift from summing 0.1 s
         self.steps += 1
         x, y, th = self.state[:3].tolist()
-        out = not (self._x_range[0] <= x <= self._x_range[1])
+        box = self.geometry.axle_box
+        out = not (box[0] <= x <= box[1] and box[2] <= y <= box[3])
         obs = self._obs()
         info = self._info(out)
         terminated = bool(info["is_success"] or self.collided or out)
@@ -236,11 +265,15 @@ class MirrorParkEnv(gym.Env):
         obs = np.empty(13, dtype=np.float32)
         obs[:7] = (x, y, c, s, v / p.v_max, a / abs(p.a_min), d / p.max_steer)
         obs[7:] = self._static_obs
-        return {
+        out = {
             "observation": obs,
             "achieved_goal": obs[:4].copy(),
             "desired_goal": self._desired.copy(),
         }
+        if self._lidar is not None:
+            off = self.params.center_offset
+            out["lidar"] = self._lidar.read(self.state[0] + off * c, self.state[1] + off * s, th)
+        return out
 
     def _info(self, out_of_scene: bool) -> dict[str, Any]:
         x, y, th, v, a, d = self.state.tolist()

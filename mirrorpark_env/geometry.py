@@ -66,7 +66,7 @@ class ConvexSet:
             if not is_convex(q):
                 raise ValueError(f"polygon {i}: not convex")
             polys.append(q)
-        v_max = max(len(p) for p in polys)
+        v_max = max((len(p) for p in polys), default=3)
         verts = np.empty((len(polys), v_max, 2))
         norms = np.empty((len(polys), v_max, 2))
         for k, p in enumerate(polys):

@@ -34,12 +34,14 @@ def build_road(geometry: ScenarioGeometry, np_random=None):
     rw = geometry.road_width
     net = RoadNetwork()
     c, n = LineType.CONTINUOUS_LINE, LineType.NONE
-    net.add_lane("road", "end", StraightLane([x_lo, -rw / 2], [x_hi, -rw / 2], width=rw, line_types=(c, c)))
+    grid = geometry.scenario is not None
+    if grid:  # a layout names no road: its obstacles are drawn as they are
+        net.add_lane("road", "end", StraightLane([x_lo, -rw / 2], [x_hi, -rw / 2], width=rw, line_types=(c, c)))
     slot = geometry.slot
     names = [name for name, _ in geometry.slot_edges]
-    for i in range(4):  # the slot's sides painted, as one narrow lane each
+    for i in range(4 if slot is not None else 0):  # the slot's sides painted, as one narrow lane each
         a, b = slot[i], slot[(i + 1) % 4]
-        if names[i] == "entrance" and geometry.parking_type.value != "angle":
+        if grid and names[i] == "entrance" and geometry.parking_type.value != "angle":
             continue  # lies on the road's own edge line
         net.add_lane(f"slot{i}", f"slot{i}e", StraightLane([a[0], -a[1]], [b[0], -b[1]], width=0.15, line_types=(c, n)))
     return Road(network=net, np_random=np_random, record_history=False)
@@ -153,6 +155,9 @@ def make_viewer(renderer: Renderer):
 
         def window_position(self) -> np.ndarray:
             g = self.env.geometry
+            if g.scenario is None:  # a layout: between the start and the target
+                mid = 0.5 * (np.asarray(g.target[:2]) + np.array([g.start.x, g.start.y]))
+                return np.array([mid[0], -mid[1]])
             x_mid = 0.5 * (g.slot[:, 0].min() + g.slot[:, 0].max()) + 3.0
             y_mid = 0.5 * (g.road_width + g.slot[:, 1].min())
             return np.array([x_mid, -y_mid])
@@ -164,7 +169,9 @@ def make_viewer(renderer: Renderer):
             scene = self.env.scene
             surf.move_display_window_to(self.window_position())
             surf.fill((118, 118, 118))
-            for poly in self.env.geometry.obstacles.polygons:
+            g = self.env.geometry
+            polys = g.obstacles.polygons if g.layout is None or g.scenario is not None else g.layout.obstacles
+            for poly in polys:  # a layout's obstacles as given (not their convex parts)
                 pts = [surf.pos2pix(px, -py) for px, py in poly]
                 pygame.draw.polygon(surf, self.OBSTACLE, pts)
                 pygame.draw.polygon(surf, self.OBSTACLE_EDGE, pts, 2)

@@ -24,7 +24,8 @@ from functools import cached_property
 import numpy as np
 
 from .config import ParkingType
-from .geometry import ConvexSet, FootprintChecker, HalfPlane, inward_half_plane
+from .geometry import ConvexSet, FootprintChecker, HalfPlane
+from .layout import Layout, Slot
 from .vehicle import VehicleParams, VehicleState, footprint
 
 SQRT2 = math.sqrt(2.0)
@@ -143,23 +144,32 @@ _CASE_ID = re.compile(
 
 @dataclass(frozen=True, eq=False)
 class ScenarioGeometry:
-    """What a parking system perceives of a scenario: obstacles, slot, start and target.
+    """What a parking system perceives of a scene: obstacles, slot, start and target.
 
-    ``slot_edges`` are the slot's sides as inward half-planes, named ``entrance`` (the
-    slot line), ``back`` and, for parallel, ``rear``/``front`` (the slot's ends behind
-    and ahead of the parked car), for reverse and angle, ``left``/``right`` (as seen
-    from the parked car).
+    Built by ``Layout.build`` for grid cases and loaded layouts alike. ``obstacles`` are
+    convex parts. ``slot_edges`` are the slot's sides as inward half-planes, named
+    ``entrance`` (the slot line), ``back`` and, for parallel, ``rear``/``front`` (the slot's
+    ends behind and ahead of the parked car), for reverse and angle, ``left``/``right`` (as
+    seen from the parked car). A layout without a slot has ``slot`` None and no edges.
+    ``axle_box``: where the rear axle may go before the episode ends out of the scene;
+    ``search_box``: the region planners search (both x_min, x_max, y_min, y_max).
     """
 
-    scenario: Scenario
     vehicle: VehicleParams
     obstacles: ConvexSet
-    slot: np.ndarray  # (4, 2) CCW
+    slot: np.ndarray | None  # (4, 2)
     slot_edges: tuple[tuple[str, HalfPlane], ...]
     start: VehicleState
     target: tuple[float, float, float]  # rear-axle (x, y, theta)
     bounds: tuple[float, float, float, float]  # x_min, x_max, y_min, y_max of the scene
-    road_width: float = field(default=0.0)
+    axle_box: tuple[float, float, float, float]
+    search_box: tuple[float, float, float, float]
+    road_width: float = 0.0
+    parking_type: ParkingType | None = None
+    slot_length: float = math.nan
+    slot_width: float = math.nan
+    scenario: Scenario | None = None
+    layout: Layout | None = None
 
     def edge(self, name: str) -> HalfPlane:
         for n, hp in self.slot_edges:
@@ -168,8 +178,11 @@ class ScenarioGeometry:
         raise KeyError(name)
 
     @property
-    def parking_type(self) -> ParkingType:
-        return self.scenario.parking_type
+    def name(self) -> str:
+        """The case id of a grid case, else the layout's name."""
+        if self.scenario is not None:
+            return self.scenario.case_id
+        return self.layout.name if self.layout is not None else "scene"
 
     @cached_property
     def checker(self) -> FootprintChecker:
@@ -208,7 +221,12 @@ def slot_fits_car(vehicle: VehicleParams, slot_length: float, slot_width: float)
 
 
 def build_geometry(sc: Scenario, vehicle: VehicleParams, scene_margin: float = 25.0) -> ScenarioGeometry:
-    """Slot, infeasible regions, start and target of ``sc``."""
+    """The geometry of grid case ``sc``: its layout (``grid_layout``), built."""
+    return grid_layout(sc, vehicle, scene_margin).build(vehicle)
+
+
+def grid_layout(sc: Scenario, vehicle: VehicleParams, scene_margin: float = 25.0) -> Layout:
+    """Slot, infeasible regions, start and target of ``sc`` as a layout."""
     t, rw, sl, sw = sc.parking_type, sc.road_width, sc.slot_length, sc.slot_width
     L, D = scene_margin, DEPTH_BEYOND
     car_len, car_w = vehicle.length, vehicle.width
@@ -265,25 +283,24 @@ def build_geometry(sc: Scenario, vehicle: VehicleParams, scene_margin: float = 2
         behind,
         _rect(x_lo, x_hi, rw, rw + D),  # beyond the far road boundary
     ]
-    centre = slot.mean(axis=0)
-    edges = tuple((names[i], inward_half_plane(slot[i], slot[(i + 1) % 4], centre)) for i in range(4))
     tx = target_c[0] - off * math.cos(heading)
     ty = target_c[1] - off * math.sin(heading)
-    start = VehicleState(E + sc.start_x_offset, sc.y0, sc.theta0)
     lo, hi = x_lo + car_len - E, x_hi - car_len - E  # the env's scene: rear axle a car length inside its ends
     if not lo < sc.start_x_offset < hi:
         raise ValueError(
             f"start_x_offset: must be in ({lo:.2f}, {hi:.2f}) m for this scene "
             f"(scene_margin={scene_margin} m), got {sc.start_x_offset}"
         )
-    return ScenarioGeometry(
-        scenario=sc,
-        vehicle=vehicle,
-        obstacles=ConvexSet.from_polygons(regions),
-        slot=slot,
-        slot_edges=edges,
-        start=start,
+    entrance = names.index("entrance")
+    return Layout(
+        obstacles=tuple(regions),
+        start=(E + sc.start_x_offset, sc.y0, sc.theta0),
         target=(tx, ty, heading),
+        slot=Slot(slot, t, entrance, road_heading=0.0, length=sl, width=sw),
+        name=sc.case_id,
         bounds=(x_lo, x_hi, -b, rw + D),
         road_width=rw,
+        axle_box=(x_lo + car_len, x_hi - car_len, -math.inf, math.inf),
+        search_box=(x_lo, x_hi, -b, rw),
+        scenario=sc,
     )

@@ -111,7 +111,7 @@ def test_every_executed_switch_in_the_natural_order_lies_in_its_plans_band(case_
         after = -plan.candidate.direction
         into_slot = parallel and after > 0 and np.allclose(goal[:2], target[:2], atol=2e-3)
         margin = 1.0 if parallel else policy.config.mirror_margin
-        inside = band_margin(P, goal, pose, after, margin, g.scenario.slot_width if into_slot else None)
+        inside = band_margin(P, goal, pose, after, margin, g.slot_width if into_slot else None)
         assert abs(v) < 0.05, f"plan {j}: the car does not stand at its switch ({v:.3f} m/s)"
         assert inside > -0.01, f"plan {j}: switch {inside:.4f} m outside its band"
         checked += 1

@@ -163,10 +163,13 @@ class HybridAStar:
 
     # -- search ---------------------------------------------------------------------
     def _window(self, start) -> tuple[float, float, float, float]:
+        """The slot (or target) and the start, ``window_margin`` around, inside the scene's
+        search box."""
         g, m = self.geometry, self.cfg.window_margin
-        x0 = min(float(g.slot[:, 0].min()), start[0]) - m
-        x1 = max(float(g.slot[:, 0].max()), start[0]) + m
-        return (x0, x1, g.bounds[2], g.road_width)
+        pts = np.vstack([g.slot if g.slot is not None else np.asarray(g.target[:2])[None], np.asarray(start[:2])[None]])
+        lo, hi = pts.min(axis=0) - m, pts.max(axis=0) + m
+        sb = g.search_box
+        return (max(sb[0], lo[0]), min(sb[1], hi[0]), max(sb[2], lo[1]), min(sb[3], hi[1]))
 
     def _key(self, pose) -> tuple[int, int, int]:
         r = self.cfg.xy_resolution

@@ -274,7 +274,7 @@ def switch_poses(g: ScenarioGeometry, radius: float) -> list[np.ndarray]:
     nrm = np.array([math.sin(th), -math.cos(th)])  # right of the target heading
     out: list[np.ndarray] = []
     if g.parking_type is ParkingType.PARALLEL:
-        psi_star, _ = parallel_dark_point(g.vehicle, g.scenario.slot_width)
+        psi_star, _ = parallel_dark_point(g.vehicle, g.slot_width)
         for psi in {psi_star, 0.7 * psi_star, 0.4 * psi_star, 0.0}:
             # Start of a right-hand forward arc (radius r, turning psi) that ends at the target.
             along, lat = -radius * math.sin(psi), radius * (1.0 - math.cos(psi))

@@ -82,7 +82,7 @@ def mirror_line(geometry: ScenarioGeometry, psi: float | None = None, margin: fl
     tx, ty, tth = geometry.target
     n = right_normal(tth)
     if geometry.parking_type is ParkingType.PARALLEL:
-        psi_star, l_star = parallel_dark_point(p, geometry.scenario.slot_width)
+        psi_star, l_star = parallel_dark_point(p, geometry.slot_width)
         return MirrorLine((tx, ty), n, l_star, True, psi_star)
     if psi is None:
         psi = abs(tth)  # from heading 0 (along the road) to the target heading

@@ -316,7 +316,7 @@ class MirrorPlanner:
         parallel = self.line.fixed  # Theorem 1's line: parallel parking
         into_slot = parallel and cand.direction < 0 and self._is_target(goal)
         margin = 1.0 if parallel else self.cfg.mirror_margin
-        return -cand.direction, margin, self.g.scenario.slot_width if into_slot else None
+        return -cand.direction, margin, self.g.slot_width if into_slot else None
 
     def _band(self, cand: Candidate, goal: np.ndarray, ref_real: np.ndarray | None) -> SwitchBand | None:
         """The band's rows about the reference's switch heading (None: no switch)."""

@@ -1,0 +1,284 @@
+"""Layouts: any parking scene as data, and the geometry the environment and planners use.
+
+A layout is obstacle polygons (any simple polygon; non-convex ones are cut exactly into
+convex parts), an optional boundary of the drivable area, the car's start and target
+rear-axle poses, and optionally the target slot (a rectangle, its parking type and which
+of its edges is the entrance) that the ISO criteria need. Without a slot, success is the
+target pose within ``CriteriaConfig.target_position_tol`` and ``heading_tol_deg``.
+
+A grid ``Scenario`` is one kind of layout (``Scenario.layout``): the environment builds
+every scene through ``Layout.build``, so grid cases and loaded layouts share one path.
+Files are read by ``layout_io``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .angles import wrap_angle
+from .config import ParkingType
+from .decompose import convex_parts
+from .geometry import ConvexSet, inward_half_plane
+from .vehicle import VehicleParams, VehicleState
+
+if TYPE_CHECKING:
+    from .scenario import Scenario, ScenarioGeometry
+
+SCENE_PAD = 5.0  # [m] a layout's scene reaches this far beyond everything in it (when not given)
+BOUNDARY_DEPTH = 3.0  # [m] thickness of the wall outside a drivable-area boundary
+OVERLAP_TOL = 1e-3  # [m] a start or target may touch an obstacle, not overlap it deeper
+
+
+def _pose(name: str, value) -> tuple[float, float, float]:
+    try:
+        x, y, th = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected (x, y, theta), got {value!r}") from None
+    if not all(math.isfinite(v) for v in (x, y, th)):
+        raise ValueError(f"{name}: must be finite, got {value!r}")
+    return (x, y, wrap_angle(th))
+
+
+def _polygon(name: str, value) -> np.ndarray:
+    p = np.asarray(value, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2 or len(p) < 3:
+        raise ValueError(f"{name}: expected at least 3 (x, y) vertices, got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f"{name}: vertices must be finite")
+    if len(p) > 3 and np.allclose(p[0], p[-1]):
+        p = p[:-1]  # a closed ring's repeated first vertex
+    return p
+
+
+@dataclass(frozen=True, eq=False)
+class Slot:
+    """The target slot: a rectangle, its type, and its entrance edge (corner i to i + 1).
+
+    ``road_heading`` is the direction of travel past the slot (rad); where it is None the
+    planners that need it take the one closer to the start heading. Lengths along the
+    slot: parallel slots are ``length`` along the entrance, reverse and angle slots
+    ``width`` along it.
+    """
+
+    corners: np.ndarray
+    parking_type: ParkingType
+    entrance: int = 0
+    road_heading: float | None = None
+    length: float = field(default=math.nan)
+    width: float = field(default=math.nan)
+
+    def __post_init__(self) -> None:
+        c = _polygon("slot.corners", self.corners)
+        if len(c) != 4:
+            raise ValueError(f"slot.corners: a slot is a rectangle of 4 corners, got {len(c)}")
+        e = np.roll(c, -1, axis=0) - c
+        sides = np.hypot(e[:, 0], e[:, 1])
+        if sides.min() <= 1e-6:
+            raise ValueError("slot.corners: two corners coincide")
+        cos = np.abs((e * np.roll(e, -1, axis=0)).sum(axis=1)) / (sides * np.roll(sides, -1))
+        if cos.max() > 1e-6 or abs(sides[0] - sides[2]) > 1e-6 or abs(sides[1] - sides[3]) > 1e-6:
+            raise ValueError("slot.corners: not a rectangle (sides must meet at right angles)")
+        object.__setattr__(self, "corners", c)
+        object.__setattr__(self, "parking_type", ParkingType.parse(self.parking_type))
+        if self.entrance not in (0, 1, 2, 3):
+            raise ValueError(f"slot.entrance: edge index in 0..3, got {self.entrance!r}")
+        if self.road_heading is not None:
+            object.__setattr__(self, "road_heading", wrap_angle(float(self.road_heading)))
+        along, across = float(sides[self.entrance]), float(sides[(self.entrance + 1) % 4])
+        parallel = self.parking_type is ParkingType.PARALLEL
+        if math.isnan(self.length):
+            object.__setattr__(self, "length", along if parallel else across)
+        if math.isnan(self.width):
+            object.__setattr__(self, "width", across if parallel else along)
+
+    @property
+    def centre(self) -> np.ndarray:
+        return self.corners.mean(axis=0)
+
+    def outward(self) -> np.ndarray:
+        """Unit normal of the entrance edge, pointing out of the slot."""
+        a, b = self.corners[self.entrance], self.corners[(self.entrance + 1) % 4]
+        d = b - a
+        n = np.array([d[1], -d[0]]) / np.hypot(*d)
+        return n if n @ (a - self.centre) > 0 else -n
+
+    def edge_names(self, target_heading: float) -> tuple[str, ...]:
+        """Names of edges 0-3 for the ISO criteria: ``entrance``, ``back`` and, for parallel,
+        ``front``/``rear`` (ahead of / behind the parked car), else ``left``/``right`` (as
+        seen from the parked car)."""
+        names = [""] * 4
+        names[self.entrance], names[(self.entrance + 2) % 4] = "entrance", "back"
+        u = np.array([math.cos(target_heading), math.sin(target_heading)])
+        left = np.array([-u[1], u[0]])
+        for i in ((self.entrance + 1) % 4, (self.entrance + 3) % 4):
+            mid = 0.5 * (self.corners[i] + self.corners[(i + 1) % 4]) - self.centre
+            if self.parking_type is ParkingType.PARALLEL:
+                names[i] = "front" if mid @ u > 0 else "rear"
+            else:
+                names[i] = "left" if mid @ left > 0 else "right"
+        if len(set(names)) != 4:
+            raise ValueError("slot: the target heading does not line up with the slot's sides")
+        return tuple(names)
+
+
+@dataclass(frozen=True, eq=False)
+class Layout:
+    """One parking scene as data (see the module docstring). Poses are rear-axle (x, y,
+    theta) in metres and radians; headings are wrapped to [-pi, pi)."""
+
+    obstacles: tuple[np.ndarray, ...]
+    start: tuple[float, float, float]
+    target: tuple[float, float, float]
+    slot: Slot | None = None
+    boundary: np.ndarray | None = None
+    name: str = "layout"
+    bounds: tuple[float, float, float, float] | None = None  # x_min, x_max, y_min, y_max
+    road_width: float = 0.0  # depth of the road beside the slot where known (the grid's RW)
+    origin: tuple[float, float] = (0.0, 0.0)  # where this frame's origin lies in the source file's
+    axle_box: tuple[float, float, float, float] | None = None  # default: the scene's bounds
+    search_box: tuple[float, float, float, float] | None = None  # default: the scene's bounds
+    scenario: Scenario | None = None  # the grid case this layout is, if any
+
+    def __post_init__(self) -> None:
+        obs = tuple(_polygon(f"obstacles[{i}]", p) for i, p in enumerate(self.obstacles))
+        object.__setattr__(self, "obstacles", obs)
+        object.__setattr__(self, "start", _pose("start", self.start))
+        object.__setattr__(self, "target", _pose("target", self.target))
+        if self.boundary is not None:
+            object.__setattr__(self, "boundary", _polygon("boundary", self.boundary))
+        if self.bounds is not None:
+            b = tuple(float(v) for v in self.bounds)
+            if len(b) != 4 or not all(math.isfinite(v) for v in b) or b[0] >= b[1] or b[2] >= b[3]:
+                raise ValueError(f"bounds: expected finite (x_min, x_max, y_min, y_max) with min < max, got {b}")
+            object.__setattr__(self, "bounds", b)
+        if not self.name or not isinstance(self.name, str):
+            raise ValueError(f"name: a non-empty string, got {self.name!r}")
+
+    @property
+    def case_id(self) -> str:
+        return self.scenario.case_id if self.scenario is not None else self.name
+
+    @cached_property
+    def parts(self) -> tuple[tuple[np.ndarray, ...], ...]:
+        """Each obstacle's convex parts (the wall outside the boundary last)."""
+        out = []
+        for i, p in enumerate(self.obstacles):
+            try:
+                out.append(tuple(convex_parts(p)))
+            except ValueError as err:
+                raise ValueError(f"obstacles[{i}]: {err}") from None
+        if self.boundary is not None:
+            out.append(tuple(_wall_outside(self.boundary)))
+        return tuple(out)
+
+    def scene_bounds(self) -> tuple[float, float, float, float]:
+        """The scene's box: ``bounds`` if given, else everything in the layout padded."""
+        if self.bounds is not None:
+            return self.bounds
+        pts = [np.asarray(self.start[:2])[None], np.asarray(self.target[:2])[None], *self.obstacles]
+        if self.boundary is not None:
+            pts.append(self.boundary)
+        if self.slot is not None:
+            pts.append(self.slot.corners)
+        a = np.concatenate(pts)
+        lo, hi = a.min(axis=0) - SCENE_PAD, a.max(axis=0) + SCENE_PAD
+        return (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
+
+    def build(self, vehicle: VehicleParams | None = None) -> ScenarioGeometry:
+        """The geometry of this layout for ``vehicle``; raises ``ValueError`` naming what is wrong."""
+        from .scenario import ScenarioGeometry
+
+        vehicle = vehicle or VehicleParams.table_ii()
+        parts = [q for ps in self.parts for q in ps]
+        obstacles = ConvexSet.from_polygons(parts)
+        start, target = self.start, self.target
+        checker = _checker(obstacles, vehicle)
+        for what, pose in (("start", start), ("target", target)):
+            depth = checker.penetration(*pose)[0] if len(parts) else np.zeros(1)
+            if depth.max() > OVERLAP_TOL:
+                k = int(np.argmax(depth))
+                raise ValueError(f"{self.name}: {what}: the car at {pose} overlaps obstacle part {k}")
+        slot, edges, ptype, sl, sw = None, (), None, math.nan, math.nan
+        if self.slot is not None:
+            s = self.slot
+            names = s.edge_names(target[2])
+            slot, ptype, sl, sw = s.corners, s.parking_type, s.length, s.width
+            edges = tuple((names[i], inward_half_plane(slot[i], slot[(i + 1) % 4], s.centre)) for i in range(4))
+            body = _body(vehicle, target)
+            inside = min(float(np.min(body @ np.array(hp.normal) - hp.offset)) for _, hp in edges)
+            if inside < -OVERLAP_TOL:
+                raise ValueError(f"{self.name}: target: the car at the target pose is not inside the slot")
+        b = self.scene_bounds()
+        return ScenarioGeometry(
+            vehicle=vehicle,
+            obstacles=obstacles,
+            slot=slot,
+            slot_edges=edges,
+            start=VehicleState(*start),
+            target=target,
+            bounds=b,
+            road_width=self.road_width,
+            parking_type=ptype,
+            slot_length=sl,
+            slot_width=sw,
+            axle_box=self.axle_box or b,
+            search_box=self.search_box or b,
+            scenario=self.scenario,
+            layout=self,
+        )
+
+    def recentred(self, beyond: float = 1000.0) -> Layout:
+        """This layout moved so that the target lies at the origin, if anything in it lies
+        farther than ``beyond`` metres from the origin (coordinates thousands of metres away
+        cost precision in every product); ``origin`` keeps where the frame was."""
+        far = max(np.abs(np.concatenate([*self.obstacles, np.asarray([self.start[:2], self.target[:2]])])).max(), 0.0)
+        if far <= beyond:
+            return self
+        o = np.array([round(self.target[0]), round(self.target[1])], dtype=float)
+        sh = lambda p: np.asarray(p, float) - o  # noqa: E731
+        slot = None
+        if self.slot is not None:
+            s = self.slot
+            slot = Slot(sh(s.corners), s.parking_type, s.entrance, s.road_heading)
+        return Layout(
+            obstacles=tuple(sh(p) for p in self.obstacles),
+            start=(self.start[0] - o[0], self.start[1] - o[1], self.start[2]),
+            target=(self.target[0] - o[0], self.target[1] - o[1], self.target[2]),
+            slot=slot,
+            boundary=None if self.boundary is None else sh(self.boundary),
+            name=self.name,
+            bounds=None
+            if self.bounds is None
+            else (self.bounds[0] - o[0], self.bounds[1] - o[0], self.bounds[2] - o[1], self.bounds[3] - o[1]),
+            road_width=self.road_width,
+            origin=(self.origin[0] + o[0], self.origin[1] + o[1]),
+        )
+
+
+def _body(vehicle: VehicleParams, pose) -> np.ndarray:
+    x, y, th = pose
+    c, s = math.cos(th), math.sin(th)
+    b = vehicle.body_corners()
+    return np.stack([x + c * b[:, 0] - s * b[:, 1], y + s * b[:, 0] + c * b[:, 1]], axis=1)
+
+
+def _checker(obstacles: ConvexSet, vehicle: VehicleParams):
+    from .geometry import FootprintChecker
+
+    return FootprintChecker(obstacles, vehicle.front_length, vehicle.rear_overhang, 0.5 * vehicle.width)
+
+
+def _wall_outside(boundary: np.ndarray) -> list[np.ndarray]:
+    """Convex parts of a band ``BOUNDARY_DEPTH`` wide around the outside of ``boundary``."""
+    from shapely.geometry import Polygon
+
+    inner = Polygon(boundary)
+    if not inner.is_valid or inner.area <= 0:
+        raise ValueError("boundary: not a simple polygon of positive area")
+    outer = inner.buffer(BOUNDARY_DEPTH, join_style="mitre").envelope
+    return convex_parts(Polygon(outer.exterior.coords, holes=[inner.exterior.coords]))
