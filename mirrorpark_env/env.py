@@ -17,9 +17,9 @@ from .config import EnvConfig, default_env, merge
 from .criteria import SuccessCriteria
 from .geometry import COLLISION_TOL
 from .grid import TYPES, grid_for
-from .rendering import Renderer
 from .layout import Layout
 from .lidar import Lidar
+from .rendering import Renderer
 from .scenario import Scenario, ScenarioGeometry, grid_layout
 from .vehicle import TruthModel, VehicleParams, VehicleState, from_action
 
