@@ -7,30 +7,37 @@ from collections.abc import Callable
 from planners.base import Policy
 
 
+def _in_slot_frame(policy: Policy) -> Policy:
+    """The mirror planner's parts plan in the slot's frame: any layout with a slot."""
+    from planners.common.slot_frame import InSlotFrame
+
+    return InSlotFrame(policy)
+
+
 def _mirror() -> Policy:
     from planners.mirror.policy import MirrorPolicy
 
-    return MirrorPolicy()
+    return _in_slot_frame(MirrorPolicy())
 
 
 def _mirror_paper() -> Policy:
     from planners.mirror.config import MirrorPlannerConfig
     from planners.mirror.policy import MirrorPolicy
 
-    return MirrorPolicy(MirrorPlannerConfig(linearisation="paper"))
+    return _in_slot_frame(MirrorPolicy(MirrorPlannerConfig(linearisation="paper")))
 
 
 def _mirror_cold() -> Policy:
     from planners.mirror.config import MirrorPlannerConfig
     from planners.mirror.policy import MirrorPolicy
 
-    return MirrorPolicy(MirrorPlannerConfig(guide=False))
+    return _in_slot_frame(MirrorPolicy(MirrorPlannerConfig(guide=False)))
 
 
 def _guide_only() -> Policy:
     from planners.mirror.guide_policy import GuideOnlyPolicy
 
-    return GuideOnlyPolicy()
+    return _in_slot_frame(GuideOnlyPolicy())
 
 
 def _hybrid_astar() -> Policy:

@@ -239,7 +239,7 @@ class Layout:
         far = max(np.abs(np.concatenate([*self.obstacles, np.asarray([self.start[:2], self.target[:2]])])).max(), 0.0)
         if far <= beyond:
             return self
-        o = np.array([round(self.target[0]), round(self.target[1])], dtype=float)
+        o = np.array([round(self.target[0]), round(self.target[1])], dtype=float)  # whole metres: exact shifts
         sh = lambda p: np.asarray(p, float) - o  # noqa: E731
         slot = None
         if self.slot is not None:
@@ -256,7 +256,7 @@ class Layout:
             if self.bounds is None
             else (self.bounds[0] - o[0], self.bounds[1] - o[0], self.bounds[2] - o[1], self.bounds[3] - o[1]),
             road_width=self.road_width,
-            origin=(self.origin[0] + o[0], self.origin[1] + o[1]),
+            origin=(float(self.origin[0] + o[0]), float(self.origin[1] + o[1])),
         )
 
 

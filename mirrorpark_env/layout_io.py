@@ -1,0 +1,261 @@
+"""Layout files: MirrorPark's own YAML/JSON format and TPCAP's CSV rows.
+
+Native format (docs/layouts.md), one layout per file; angles in degrees at this edge::
+
+    name: corner_lot                # optional: the file's stem
+    start: {x: 2.0, y: 3.0, heading_deg: 0}      # rear axle
+    target: {x: 8.1, y: -1.2, heading_deg: 0}
+    obstacles: [[[0, 0], [5, 0], [5, -2], [0, -2]], ...]   # polygons, convex or not
+    boundary: [[-10, -5], [30, -5], [30, 10], [-10, 10]]   # optional drivable area
+    slot:                           # optional; "infer" reads it off the obstacles
+      corners: [[x, y], [x, y], [x, y], [x, y]]   # a rectangle
+      type: parallel                # parallel | reverse | angle
+      entrance: 0                   # the entrance edge runs from corners[i] to corners[i + 1]
+      road_heading_deg: 0           # optional: direction of travel past the slot
+    bounds: [x_min, x_max, y_min, y_max]   # optional scene box
+    road_width: 6.0                 # optional
+
+TPCAP (the trajectory-planning competition for automated parking) writes one case per row,
+read as is: ``x0, y0, theta0, xf, yf, thetaf, m, n_1 ... n_m`` then the m polygons'
+vertices as x, y pairs; headings in radians (any value: wrapped), coordinates anywhere
+(recentred when far from the origin), polygons convex or not. The slot is inferred
+(``slot_inference``). A file may hold several rows: layout ``STEM`` for one, else
+``STEM#1``, ``STEM#2``, ... Every error names the file, the row or field and the problem.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field
+
+from .config import StrictModel, validate
+from .layout import Layout, Slot
+from .slot_inference import infer_slot
+
+SUFFIXES = (".yaml", ".yml", ".json", ".csv")
+
+Point = tuple[float, float]
+
+
+class PoseModel(StrictModel):
+    x: float = Field(allow_inf_nan=False)
+    y: float = Field(allow_inf_nan=False)
+    heading_deg: float = Field(allow_inf_nan=False)
+
+
+class SlotModel(StrictModel):
+    corners: list[Point] = Field(min_length=4, max_length=4)
+    type: Literal["parallel", "reverse", "angle"]
+    entrance: int = Field(0, ge=0, le=3)
+    road_heading_deg: float | None = Field(None, allow_inf_nan=False)
+
+
+class LayoutModel(StrictModel):
+    name: str | None = Field(None, min_length=1)
+    start: PoseModel
+    target: PoseModel
+    obstacles: list[list[Point]] = Field(default_factory=list)
+    boundary: list[Point] | None = None
+    slot: SlotModel | Literal["infer"] | None = None
+    bounds: tuple[float, float, float, float] | None = None
+    road_width: float = Field(0.0, ge=0, le=100)
+
+
+def _pose(p: PoseModel) -> tuple[float, float, float]:
+    return (p.x, p.y, math.radians(p.heading_deg))
+
+
+def from_model(m: LayoutModel, name: str) -> Layout:
+    """A validated native record as a ``Layout`` (recentred when far from the origin)."""
+    start, target = _pose(m.start), _pose(m.target)
+    slot = None
+    if isinstance(m.slot, SlotModel):
+        rh = None if m.slot.road_heading_deg is None else math.radians(m.slot.road_heading_deg)
+        slot = Slot(m.slot.corners, m.slot.type, m.slot.entrance, rh)
+    elif m.slot == "infer":
+        slot, _ = infer_slot(m.obstacles, start, target)
+    layout = Layout(
+        obstacles=tuple(m.obstacles),  # a bad polygon is named when it is cut into parts, below
+        start=start,
+        target=target,
+        slot=slot,
+        boundary=m.boundary,
+        name=m.name or name,
+        bounds=m.bounds,
+        road_width=m.road_width,
+    )
+    layout = layout.recentred()
+    _ = layout.parts  # decompose now: a bad polygon fails at load, named
+    return layout
+
+
+def to_dict(layout: Layout) -> dict:
+    """The native record of ``layout`` (in its own frame; the inverse of ``from_model``)."""
+
+    def pose(p):
+        return {"x": p[0], "y": p[1], "heading_deg": math.degrees(p[2])}
+
+    d: dict = {
+        "name": layout.name,
+        "start": pose(layout.start),
+        "target": pose(layout.target),
+        "obstacles": [p.tolist() for p in layout.obstacles],
+    }
+    if layout.boundary is not None:
+        d["boundary"] = layout.boundary.tolist()
+    if layout.slot is not None:
+        s = layout.slot
+        d["slot"] = {"corners": s.corners.tolist(), "type": s.parking_type.value, "entrance": s.entrance}
+        if s.road_heading is not None:
+            d["slot"]["road_heading_deg"] = math.degrees(s.road_heading)
+    if layout.bounds is not None:
+        d["bounds"] = list(layout.bounds)
+    if layout.road_width:
+        d["road_width"] = layout.road_width
+    return d
+
+
+def write_layout(layout: Layout, path: str | Path) -> Path:
+    """Write ``layout`` in the native format (JSON or YAML by the suffix)."""
+    p = Path(path)
+    d = to_dict(layout)
+    if p.suffix.lower() == ".json":
+        p.write_text(json.dumps(d, indent=1) + "\n")
+    elif p.suffix.lower() in (".yaml", ".yml"):
+        import yaml
+
+        p.write_text(yaml.safe_dump(d, sort_keys=False))
+    else:
+        raise ValueError(f"{p}: a native layout file ends in .json, .yaml or .yml")
+    return p
+
+
+def _read_text(p: Path) -> str:
+    try:
+        return p.read_bytes().decode("utf-8")
+    except OSError as err:
+        raise ValueError(f"{p}: cannot read layout file ({err.strerror})") from None
+    except UnicodeDecodeError as err:
+        raise ValueError(f"{p}: not UTF-8 text (byte {err.start})") from None
+
+
+def _native(p: Path) -> list[Layout]:
+    text = _read_text(p)
+    if p.suffix.lower() == ".json":
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as err:
+            raise ValueError(f"{p}: not valid JSON: {err}") from None
+    else:
+        import yaml
+
+        try:
+            data = yaml.safe_load(text)
+        except yaml.YAMLError as err:
+            raise ValueError(f"{p}: not valid YAML: {err}") from None
+    m = validate(LayoutModel, data, source=str(p))
+    try:
+        return [from_model(m, p.stem)]
+    except ValueError as err:
+        raise ValueError(f"{p}: {err}") from None
+
+
+def parse_tpcap_row(values: list[str]) -> tuple[tuple, tuple, list[list[Point]]]:
+    """(start, target, polygons) of one TPCAP row; ``ValueError`` says what is wrong."""
+    vals = [v.strip() for v in values if v.strip() != ""]
+    if len(vals) < 7:
+        raise ValueError(f"expected at least 7 values (x0, y0, theta0, xf, yf, thetaf, m), got {len(vals)}")
+    try:
+        nums = [float(v) for v in vals]
+    except ValueError:
+        bad = next(v for v in vals if not _is_float(v))
+        raise ValueError(f"not a number: {bad!r}") from None
+    if not all(math.isfinite(v) for v in nums):
+        raise ValueError("values must be finite")
+    start, target = tuple(nums[0:3]), tuple(nums[3:6])
+    m = nums[6]
+    if m != int(m) or m < 0:
+        raise ValueError(f"m (the number of obstacles, value 7) must be a whole number >= 0, got {vals[6]}")
+    m = int(m)
+    if len(nums) < 7 + m:
+        raise ValueError(f"m = {m} obstacles need {m} vertex counts after it, got {len(nums) - 7}")
+    counts = nums[7 : 7 + m]
+    for i, n in enumerate(counts):
+        if n != int(n) or n < 3:
+            raise ValueError(f"n_{i + 1} (vertices of obstacle {i + 1}) must be a whole number >= 3, got {n:g}")
+    need = 2 * int(sum(counts))
+    coords = nums[7 + m :]
+    if len(coords) != need:
+        raise ValueError(f"the vertex counts {[int(n) for n in counts]} need {need} coordinates, got {len(coords)}")
+    polys, k = [], 0
+    for n in counts:
+        n = int(n)
+        polys.append([(coords[k + 2 * j], coords[k + 2 * j + 1]) for j in range(n)])
+        k += 2 * n
+    return start, target, polys
+
+
+def _is_float(v: str) -> bool:
+    try:
+        float(v)
+    except ValueError:
+        return False
+    return True
+
+
+def _tpcap(p: Path) -> list[Layout]:
+    rows = [r for r in csv.reader(_read_text(p).splitlines()) if any(c.strip() for c in r)]
+    if not rows:
+        raise ValueError(f"{p}: no rows")
+    out = []
+    for n, row in enumerate(rows, 1):
+        name = p.stem if len(rows) == 1 else f"{p.stem}#{n}"
+        try:
+            start, target, polys = parse_tpcap_row(row)
+            slot, _ = infer_slot(polys, start, target)
+            layout = Layout(tuple(polys), start, target, slot=slot, name=name).recentred()
+            _ = layout.parts  # decompose now: a bad polygon fails at load, named
+            out.append(layout)
+        except ValueError as err:
+            raise ValueError(f"{p}: row {n}: {err}") from None
+    return out
+
+
+def load_layouts(path: str | Path) -> list[Layout]:
+    """Every layout in a file, or in the layout files of a folder (sorted by name)."""
+    p = Path(path)
+    if p.is_dir():
+        files = sorted(f for f in p.iterdir() if f.suffix.lower() in SUFFIXES)
+        if not files:
+            raise ValueError(f"{p}: no layout files ({', '.join(SUFFIXES)})")
+        return [lay for f in files for lay in load_layouts(f)]
+    if not p.exists():
+        raise ValueError(f"{p}: no such layout file or folder")
+    suffix = p.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise ValueError(f"{p}: a layout file ends in {', '.join(SUFFIXES)}")
+    return _tpcap(p) if suffix == ".csv" else _native(p)
+
+
+def load_layout(path: str | Path) -> Layout:
+    """The one layout in a file (a TPCAP file of several rows: name one with ``FILE#ROW``)."""
+    s = str(path)
+    row = None
+    if "#" in Path(s).name:
+        s, _, r = s.rpartition("#")
+        if not r.isdigit() or int(r) < 1:
+            raise ValueError(f"{path}: after '#' comes a row number >= 1")
+        row = int(r)
+    layouts = load_layouts(s)
+    if row is not None:
+        if row > len(layouts):
+            raise ValueError(f"{s}: has {len(layouts)} row(s), not {row}")
+        return layouts[row - 1]
+    if len(layouts) != 1:
+        raise ValueError(f"{s}: holds {len(layouts)} layouts; name one as {s}#ROW")
+    return layouts[0]
