@@ -61,12 +61,30 @@ def _cases(args: argparse.Namespace):
     return cases
 
 
+def _layouts(args: argparse.Namespace):
+    """The layouts of ``--layouts`` (files and folders), filtered by ``--types``; a name
+    that repeats is reported and run once."""
+    from mirrorpark_env.layout_io import load_layouts
+
+    from .runner import unique
+
+    layouts = [lay for p in args.layouts for lay in load_layouts(p)]
+    if args.types:
+        layouts = [lay for lay in layouts if lay.slot is not None and lay.slot.parking_type.value in args.types]
+        if not layouts:
+            raise ValueError(f"--layouts: no layout with a slot of type {', '.join(args.types)}")
+    layouts, repeats = unique(layouts)
+    if repeats:
+        print(f"mirrorpark: note: --layouts: {repeats} layout name(s) repeated; run once", file=sys.stderr)
+    return layouts
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from .metrics import summary
     from .runner import evaluate
     from .store import read_results
 
-    scenarios = _cases(args)
+    scenarios = _layouts(args) if args.layouts else _cases(args)
     out = Path(args.out)
     store = evaluate(
         args.planner,
@@ -81,9 +99,15 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     ids = {sc.case_id for sc in scenarios}
     df = df[df["case_id"].isin(ids) & (df["planner"] == args.planner)]
     s = summary(df, args.planner)
+    if args.layouts:
+        from .layout_report import write_layout_report
+
+        report = write_layout_report(read_results([out]), scenarios, out)
+        if not args.json:
+            print(f"{args.planner}: {s['cases']} layouts; report in {report}")
     if args.json:
         print(json.dumps(s))
-    else:
+    elif not args.layouts:
         r = s["success_rate"]
         pct = lambda v: "n/a" if v is None else f"{100 * v:.1f} %"  # noqa: E731
         print(
@@ -202,7 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
 
-    e = sub.add_parser("evaluate", help="run a planner over grid cases; resumable")
+    e = sub.add_parser("evaluate", help="run a planner over grid cases or layouts; resumable")
     e.add_argument(
         "--planner",
         required=True,
@@ -210,6 +234,13 @@ def build_parser() -> argparse.ArgumentParser:
         "loading it runs pickled code: name only files you trust)",
     )
     case_args(e)
+    e.add_argument(
+        "--layouts",
+        nargs="+",
+        default=None,
+        help="layout files or folders (native .yaml/.json, TPCAP .csv) instead of grid cases; "
+        "writes OUT/layouts.md and a figure per layout",
+    )
     e.add_argument("--backend", default="local", choices=["local", "ray"])
     e.add_argument("--address", default=None, help="Ray cluster address (default: start a local Ray)")
     e.add_argument("--out", default=None, help="results folder (default: results/<planner>-<sample>)")
@@ -361,7 +392,8 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if getattr(args, "func", None) is cmd_evaluate and args.out is None:
         args.out = (
-            f"results/{args.planner.replace(':', '_').replace('/', '_')}-{'cases' if args.cases else args.sample}"
+            f"results/{args.planner.replace(':', '_').replace('/', '_')}-"
+            f"{'layouts' if args.layouts else 'cases' if args.cases else args.sample}"
         )
     _one_line_warnings()
     try:

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from mirrorpark_env.criteria import iso_pose_exists
+from mirrorpark_env.layout import Layout
 from mirrorpark_env.scenario import Scenario
 from mirrorpark_env.vehicle import VehicleParams
 
@@ -54,19 +55,48 @@ def case_fields(sc: Scenario) -> dict[str, Any]:
     }
 
 
+def layout_fields(lay: Layout) -> dict[str, Any]:
+    """A layout's row fields: its name, slot and start (the grid's columns where they apply)."""
+    s = lay.slot
+    return {
+        "case_id": lay.name,
+        "layout": lay.name,
+        "parking_type": s.parking_type.value if s is not None else "none",
+        "road_width": lay.road_width,
+        "slot_length": s.length if s is not None else math.nan,
+        "slot_width": s.width if s is not None else math.nan,
+        "theta0_deg": round(math.degrees(lay.start[2]), 9),
+        "y0": math.nan,
+        "y1": math.nan,
+        "start_x_offset": math.nan,
+    }
+
+
+def _feasible(case: Scenario | Layout) -> bool:
+    if isinstance(case, Layout):
+        s = case.slot
+        if s is None:
+            return True
+        return bool(iso_pose_exists(s.parking_type.value, s.length, s.width, VehicleParams.table_ii()))
+    return bool(iso_pose_exists(case.parking_type.value, case.slot_length, case.slot_width, VehicleParams.table_ii()))
+
+
 def unique(scenarios: Iterable[Scenario]) -> tuple[list[Scenario], int]:
     """The scenarios in order with repeats (same id) dropped, and how many were dropped."""
     out, seen, n_in = [], set(), 0
     for sc in scenarios:
         n_in += 1
-        if sc.case_id not in seen:
+        if sc.case_id not in seen:  # a Scenario's or a Layout's
             seen.add(sc.case_id)
             out.append(sc)
     return out, n_in - len(out)
 
 
-def run_case(planner: str, sc: Scenario) -> dict[str, Any]:
-    """One episode of ``planner`` on scenario ``sc``; never raises (errors become rows)."""
+def run_case(planner: str, sc: Scenario | Layout) -> dict[str, Any]:
+    """One episode of ``planner`` on a grid case or a layout; never raises (errors become rows).
+
+    A layout's row also holds the driven path (``path_x``, ``path_y``: the rear axle at
+    every step, in the layout's frame) for its figure."""
     from planners.base import run_episode
 
     from .registry import make_policy
@@ -75,9 +105,14 @@ def run_case(planner: str, sc: Scenario) -> dict[str, Any]:
     row: dict[str, Any] = {"planner": planner}
     info = None
     try:
-        row.update(case_fields(sc))
+        is_layout = isinstance(sc, Layout)
+        row.update(layout_fields(sc) if is_layout else case_fields(sc))
         policy = make_policy(planner)
-        info, steps = run_episode(worker_env(), policy, sc)
+        trace: list[dict] | None = [] if is_layout else None
+        info, steps = run_episode(worker_env(), policy, sc, trace=trace)
+        if trace is not None:
+            row["path_x"] = [round(i["vehicle_state"].x, 4) for i in trace]
+            row["path_y"] = [round(i["vehicle_state"].y, 4) for i in trace]
         times = [1e3 * s.wall_time_s for s in policy.stats]
         row.update(
             success=bool(info["is_success"]),
@@ -117,7 +152,7 @@ def run_case(planner: str, sc: Scenario) -> dict[str, Any]:
             error=f"{type(err).__name__}: {err}",
             traceback=traceback.format_exc(limit=5),
         )
-    feasible = bool(iso_pose_exists(sc.parking_type.value, sc.slot_length, sc.slot_width, VehicleParams.table_ii()))
+    feasible = _feasible(sc)
     row["feasible"] = feasible
     ended = None if row.get("planner_status") == "error" else info
     row["failure_cause"], row["failure_amount"] = episode_cause(ended, feasible)

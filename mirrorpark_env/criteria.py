@@ -131,7 +131,7 @@ class SuccessCriteria:
         herr = wrap_angle(theta - self.target_heading)
         if self.no_slot:
             margins = self.margins(x, y, theta)
-            inside = True  # no slot to be inside of
+            inside = margins["M_pos"] >= 0.0  # no slot: "inside" is within the position tolerance
         else:
             d = self._edge_distances_at(x, y, theta)
             margins = self._margins_from(d)

@@ -72,7 +72,7 @@ class MirrorParkEnv(gym.Env):
     ## Episode End
     Terminated on ISO success (in a layout without a slot: the target pose within
     ``criteria.target_position_tol`` and the heading tolerance), collision or leaving the
-    scene (the rear axle outside the geometry's ``axle_box``); truncated after
+    scene (the rear axle outside the geometry's ``bounds``); truncated after
     ``max_episode_steps`` = 1800 steps (180 s at the default 0.1 s step, the ISO time
     limit; declared in the registration: pass ``max_episode_steps`` to ``gym.make`` with
     another ``dt``).
@@ -226,7 +226,7 @@ class MirrorParkEnv(gym.Env):
         self.time = round(self._substeps * self.model.h, 9)  # no drift from summing 0.1 s
         self.steps += 1
         x, y, th = self.state[:3].tolist()
-        box = self.geometry.axle_box
+        box = self.geometry.bounds
         out = not (box[0] <= x <= box[1] and box[2] <= y <= box[3])
         obs = self._obs()
         info = self._info(out)

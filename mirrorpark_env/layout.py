@@ -137,11 +137,9 @@ class Layout:
     slot: Slot | None = None
     boundary: np.ndarray | None = None
     name: str = "layout"
-    bounds: tuple[float, float, float, float] | None = None  # x_min, x_max, y_min, y_max
+    bounds: tuple[float, float, float, float] | None = None  # x_min, x_max, y_min, y_max: the rear axle's box
     road_width: float = 0.0  # depth of the road beside the slot where known (the grid's RW)
     origin: tuple[float, float] = (0.0, 0.0)  # where this frame's origin lies in the source file's
-    axle_box: tuple[float, float, float, float] | None = None  # default: the scene's bounds
-    search_box: tuple[float, float, float, float] | None = None  # default: the scene's bounds
     scenario: Scenario | None = None  # the grid case this layout is, if any
 
     def __post_init__(self) -> None:
@@ -177,7 +175,8 @@ class Layout:
         return tuple(out)
 
     def scene_bounds(self) -> tuple[float, float, float, float]:
-        """The scene's box: ``bounds`` if given, else everything in the layout padded."""
+        """The box the rear axle stays in: ``bounds`` if given, else everything in the layout
+        padded by ``SCENE_PAD``."""
         if self.bounds is not None:
             return self.bounds
         pts = [np.asarray(self.start[:2])[None], np.asarray(self.target[:2])[None], *self.obstacles]
@@ -226,8 +225,6 @@ class Layout:
             parking_type=ptype,
             slot_length=sl,
             slot_width=sw,
-            axle_box=self.axle_box or b,
-            search_box=self.search_box or b,
             scenario=self.scenario,
             layout=self,
         )

@@ -3,7 +3,7 @@
 Native format (docs/layouts.md), one layout per file; angles in degrees at this edge::
 
     name: corner_lot                # optional: the file's stem
-    start: {x: 2.0, y: 3.0, heading_deg: 0}      # rear axle
+    start: {x: 2.0, y: 3.0, heading_deg: 0}      # rear axle; or heading: RADIANS
     target: {x: 8.1, y: -1.2, heading_deg: 0}
     obstacles: [[[0, 0], [5, 0], [5, -2], [0, -2]], ...]   # polygons, convex or not
     boundary: [[-10, -5], [30, -5], [30, 10], [-10, 10]]   # optional drivable area
@@ -31,7 +31,7 @@ import math
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from .config import StrictModel, validate
 from .layout import Layout, Slot
@@ -45,7 +45,17 @@ Point = tuple[float, float]
 class PoseModel(StrictModel):
     x: float = Field(allow_inf_nan=False)
     y: float = Field(allow_inf_nan=False)
-    heading_deg: float = Field(allow_inf_nan=False)
+    heading_deg: float | None = Field(None, allow_inf_nan=False)
+    heading: float | None = Field(None, allow_inf_nan=False)  # [rad], instead of heading_deg
+
+    @model_validator(mode="after")
+    def _one_heading(self) -> PoseModel:
+        if (self.heading is None) == (self.heading_deg is None):
+            raise ValueError("give the heading as heading_deg (degrees) or heading (radians), exactly one")
+        return self
+
+    def radians(self) -> float:
+        return self.heading if self.heading is not None else math.radians(self.heading_deg)
 
 
 class SlotModel(StrictModel):
@@ -67,7 +77,7 @@ class LayoutModel(StrictModel):
 
 
 def _pose(p: PoseModel) -> tuple[float, float, float]:
-    return (p.x, p.y, math.radians(p.heading_deg))
+    return (p.x, p.y, p.radians())
 
 
 def from_model(m: LayoutModel, name: str) -> Layout:
@@ -97,8 +107,8 @@ def from_model(m: LayoutModel, name: str) -> Layout:
 def to_dict(layout: Layout) -> dict:
     """The native record of ``layout`` (in its own frame; the inverse of ``from_model``)."""
 
-    def pose(p):
-        return {"x": p[0], "y": p[1], "heading_deg": math.degrees(p[2])}
+    def pose(p):  # radians: a written layout reads back bit for bit
+        return {"x": p[0], "y": p[1], "heading": p[2]}
 
     d: dict = {
         "name": layout.name,

@@ -30,7 +30,8 @@ def build_road(geometry: ScenarioGeometry, np_random=None):
     from highway_env.road.lane import LineType, StraightLane
     from highway_env.road.road import Road, RoadNetwork
 
-    x_lo, x_hi, _, _ = geometry.bounds
+    x_lo, x_hi, _, _ = geometry.bounds  # the rear axle's box: the road reaches a car length beyond
+    x_lo, x_hi = x_lo - geometry.vehicle.length, x_hi + geometry.vehicle.length
     rw = geometry.road_width
     net = RoadNetwork()
     c, n = LineType.CONTINUOUS_LINE, LineType.NONE

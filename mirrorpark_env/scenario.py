@@ -151,8 +151,8 @@ class ScenarioGeometry:
     ``entrance`` (the slot line), ``back`` and, for parallel, ``rear``/``front`` (the slot's
     ends behind and ahead of the parked car), for reverse and angle, ``left``/``right`` (as
     seen from the parked car). A layout without a slot has ``slot`` None and no edges.
-    ``axle_box``: where the rear axle may go before the episode ends out of the scene;
-    ``search_box``: the region planners search (both x_min, x_max, y_min, y_max).
+    ``bounds``: the box the rear axle stays in (leaving it ends the episode, out of the
+    scene); planners search inside it.
     """
 
     vehicle: VehicleParams
@@ -161,9 +161,7 @@ class ScenarioGeometry:
     slot_edges: tuple[tuple[str, HalfPlane], ...]
     start: VehicleState
     target: tuple[float, float, float]  # rear-axle (x, y, theta)
-    bounds: tuple[float, float, float, float]  # x_min, x_max, y_min, y_max of the scene
-    axle_box: tuple[float, float, float, float]
-    search_box: tuple[float, float, float, float]
+    bounds: tuple[float, float, float, float]  # x_min, x_max, y_min, y_max of the rear axle
     road_width: float = 0.0
     parking_type: ParkingType | None = None
     slot_length: float = math.nan
@@ -298,9 +296,7 @@ def grid_layout(sc: Scenario, vehicle: VehicleParams, scene_margin: float = 25.0
         target=(tx, ty, heading),
         slot=Slot(slot, t, entrance, road_heading=0.0, length=sl, width=sw),
         name=sc.case_id,
-        bounds=(x_lo, x_hi, -b, rw + D),
+        bounds=(x_lo + car_len, x_hi - car_len, -b, rw + D),  # the rear axle a car length inside the ends
         road_width=rw,
-        axle_box=(x_lo + car_len, x_hi - car_len, -math.inf, math.inf),
-        search_box=(x_lo, x_hi, -b, rw),
         scenario=sc,
     )

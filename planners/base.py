@@ -64,10 +64,14 @@ def run_episode(
 ):
     """Roll ``policy`` out in ``env`` for one episode; return (last info, steps).
 
+    ``scenario``: a grid ``Scenario`` or case id, a ``Layout``, or None (a random case).
     ``trace``, if given, receives the info of the reset and of every step; ``record`` the
     reset's (obs, info) and then every step's (action, obs, reward, terminated, truncated,
     info). An episode the policy gives up ends once the car stands, as truncated."""
-    options = {"scenario": scenario} if scenario is not None else None
+    from mirrorpark_env.layout import Layout
+
+    key = "layout" if isinstance(scenario, Layout) else "scenario"
+    options = {key: scenario} if scenario is not None else None
     obs, info = env.reset(seed=seed, options=options)
     policy.reset(info["geometry"])
     if trace is not None:

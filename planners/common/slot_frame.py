@@ -46,6 +46,12 @@ class SlotFrame:
     e_y: np.ndarray
 
     @property
+    def identity(self) -> bool:
+        """Within 1e-12 of the world frame (a grid case read back from a file, say)."""
+        eye = np.concatenate([self.origin, self.e_x - (1.0, 0.0), self.e_y - (0.0, 1.0)])
+        return bool(np.abs(eye).max() < 1e-12)
+
+    @property
     def reflected(self) -> bool:
         return float(self.e_x[0] * self.e_y[1] - self.e_x[1] * self.e_y[0]) < 0
 
@@ -67,6 +73,12 @@ class SlotFrame:
 
 
 def _rot(d: np.ndarray, angle: float) -> np.ndarray:
+    """``d`` turned by ``angle``; exact for quarter turns (a grid slot's frame is then exact)."""
+    quarter = angle / (math.pi / 2)
+    if abs(quarter - round(quarter)) < 1e-12:
+        for _ in range(round(quarter) % 4):
+            d = np.array([-d[1], d[0]])
+        return np.asarray(d, float)
     c, s = math.cos(angle), math.sin(angle)
     return np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]])
 
@@ -109,6 +121,8 @@ def in_slot_frame(g: ScenarioGeometry) -> tuple[ScenarioGeometry, SlotFrame | No
     if g.scenario is not None:
         return g, None
     f = slot_frame(g)
+    if f.identity and g.road_width > 0:
+        return g, None  # already there, to the last bit
     s = g.layout.slot
     parts = tuple(f.points(p) for p in g.obstacles.polygons)
     slot = Slot(f.points(s.corners), s.parking_type, s.entrance, 0.0, s.length, s.width)

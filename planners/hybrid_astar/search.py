@@ -164,11 +164,11 @@ class HybridAStar:
     # -- search ---------------------------------------------------------------------
     def _window(self, start) -> tuple[float, float, float, float]:
         """The slot (or target) and the start, ``window_margin`` around, inside the scene's
-        search box."""
+        bounds."""
         g, m = self.geometry, self.cfg.window_margin
         pts = np.vstack([g.slot if g.slot is not None else np.asarray(g.target[:2])[None], np.asarray(start[:2])[None]])
         lo, hi = pts.min(axis=0) - m, pts.max(axis=0) + m
-        sb = g.search_box
+        sb = g.bounds
         return (max(sb[0], lo[0]), min(sb[1], hi[0]), max(sb[2], lo[1]), min(sb[3], hi[1]))
 
     def _key(self, pose) -> tuple[int, int, int]:

@@ -1,0 +1,135 @@
+"""The report of a run over layouts: a row per layout and planner, and a figure of each.
+
+Written by ``mirrorpark evaluate --layouts`` next to its results: ``layouts.md`` (success,
+parking time, switches, path length, planning time per layout and planner; a layout's
+slot and whether it is comfortable) and ``img/<layout>.png`` (the layout's obstacles,
+slot, start and target, and every planner's driven path).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from mirrorpark_env.layout import Layout
+from mirrorpark_env.vehicle import VehicleParams, footprint
+
+from .metrics import comfortable
+
+
+def _cell(v, fmt: str) -> str:
+    return "–" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
+
+
+def _markdown(df: pd.DataFrame) -> list[str]:
+    rows = [" | ".join(df.columns), " | ".join("---" for _ in df.columns)]
+    rows += [" | ".join(str(v) for v in r) for r in df.itertuples(index=False)]
+    return [f"| {r} |" for r in rows]
+
+
+def layout_table(df: pd.DataFrame) -> pd.DataFrame:
+    """Per planner and layout: the outcome and its measures."""
+    df = df.copy()
+    df["comfortable"] = comfortable(df) & (df["parking_type"] != "none")
+    cols = [
+        "layout",
+        "planner",
+        "parking_type",
+        "slot_length",
+        "slot_width",
+        "comfortable",
+        "success",
+        "failure_cause",
+        "parking_time_s",
+        "switches",
+        "path_length_m",
+        "planning_calls",
+        "plan_time_median_ms",
+        "planner_status",
+    ]
+    return df[[c for c in cols if c in df]].sort_values(["layout", "planner"]).reset_index(drop=True)
+
+
+def summary_lines(df: pd.DataFrame) -> list[str]:
+    lines = []
+    for planner, d in df.groupby("planner"):
+        ok = d["success"].fillna(False).astype(bool)
+        comf = comfortable(d) & (d["parking_type"] != "none")
+        times = np.concatenate([np.asarray(t, float) for t in d["plan_times_ms"].dropna()] or [np.empty(0)])
+        med = f"{np.median(times):.1f} ms" if len(times) else "–"
+        lines.append(
+            f"- `{planner}`: {int(ok.sum())} of {len(d)} layouts parked; comfortable slots "
+            f"{int(ok[comf].sum())} of {int(comf.sum())}; median planning call {med} over {len(times)} calls; "
+            f"{int(d['collision'].fillna(False).astype(bool).sum())} collisions."
+        )
+    return lines
+
+
+def draw_layout(layout: Layout, rows: pd.DataFrame, path: Path) -> Path:
+    """The layout with each planner's driven path (``path_x``/``path_y`` of its rows)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Polygon as Patch
+
+    v = VehicleParams.table_ii()
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    for poly in layout.obstacles:
+        ax.add_patch(Patch(poly, closed=True, fc="0.45", ec="0.2", lw=0.8))
+    if layout.boundary is not None:
+        ax.add_patch(Patch(layout.boundary, closed=True, fill=False, ec="k", lw=1.2, ls="--"))
+    if layout.slot is not None:
+        c = layout.slot.corners
+        ax.add_patch(Patch(c, closed=True, fill=False, ec="tab:orange", lw=1.2))
+        e = layout.slot.entrance
+        ax.plot(*np.array([c[e], c[(e + 1) % 4]]).T, color="tab:orange", lw=2.5)
+    for pose, color, label in ((layout.start, "tab:blue", "start"), (layout.target, "tab:green", "target")):
+        fp = footprint(v, *pose)
+        ax.add_patch(Patch(fp, closed=True, fill=False, ec=color, lw=1.2, label=label))
+    for _, r in rows.iterrows():
+        if isinstance(r.get("path_x"), (list, np.ndarray)) and len(r["path_x"]):
+            mark = "parked" if r["success"] else "not parked"
+            ax.plot(r["path_x"], r["path_y"], lw=1.2, label=f"{r['planner']} ({mark})")
+    ax.set_aspect("equal")
+    xs = np.concatenate([np.asarray(p)[:, 0] for p in layout.obstacles] + [[layout.start[0], layout.target[0]]])
+    ys = np.concatenate([np.asarray(p)[:, 1] for p in layout.obstacles] + [[layout.start[1], layout.target[1]]])
+    cx, cy = 0.5 * (layout.start[0] + layout.target[0]), 0.5 * (layout.start[1] + layout.target[1])
+    half = 12.0
+    ax.set_xlim(max(xs.min(), cx - half), min(xs.max(), cx + half))
+    ax.set_ylim(max(ys.min(), cy - half), min(ys.max(), cy + half))
+    frame = "" if layout.origin == (0.0, 0.0) else f" (frame origin at {layout.origin[0]:.0f}, {layout.origin[1]:.0f})"
+    ax.set_title(f"{layout.name}{frame}", fontsize=9)
+    ax.legend(fontsize=7, loc="best")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def write_layout_report(df: pd.DataFrame, layouts: list[Layout], out: str | Path) -> Path:
+    """``out/layouts.md`` and ``out/img/<layout>.png`` for the rows of ``layouts``."""
+    out = Path(out)
+    names = {lay.name for lay in layouts}
+    df = df[df["case_id"].isin(names)]
+    table = layout_table(df)
+    lines = ["# Layouts", "", *summary_lines(df), ""]
+    show = table.copy()
+    for c, f in (("slot_length", ".2f"), ("slot_width", ".2f"), ("parking_time_s", ".1f"), ("path_length_m", ".2f")):
+        if c in show:
+            show[c] = [_cell(v, f) for v in show[c]]
+    if "plan_time_median_ms" in show:
+        show["plan_time_median_ms"] = [_cell(v, ".1f") for v in show["plan_time_median_ms"]]
+    lines += [*_markdown(show), ""]
+    for lay in layouts:
+        rows = df[df["case_id"] == lay.name]
+        img = draw_layout(lay, rows, out / "img" / f"{lay.name.replace('#', '_')}.png")
+        lines.append(f"![{lay.name}](img/{img.name})")
+    path = out / "layouts.md"
+    path.write_text("\n".join(lines) + "\n")
+    return path
