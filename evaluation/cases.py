@@ -21,6 +21,36 @@ def from_sample(name: str, types: list[str] | None = None, seed: int | None = No
     return [grid.scenario(int(i)) for i in idx]
 
 
+def cases_from(sample: str, case_file: str | None, types: list[str] | None) -> tuple[list[Scenario], int]:
+    """A case file's cases (filtered by ``types``, repeats dropped) or a grid sample's, and
+    how many repeats were dropped."""
+    from .runner import unique
+
+    if not case_file:
+        return from_sample(sample, types=types), 0
+    cases = load_case_file(case_file)
+    if types:
+        cases = [sc for sc in cases if sc.parking_type.value in types]
+        if not cases:
+            raise ValueError(f"{case_file}: no case of type {', '.join(types)}")
+    return unique(cases)
+
+
+def layouts_from(paths: list[str], types: list[str] | None) -> tuple[list, int]:
+    """The layouts in files and folders (those with a slot of ``types`` if given), repeated
+    names dropped, and how many were dropped."""
+    from mirrorpark_env.layout_io import load_layouts
+
+    from .runner import unique
+
+    layouts = [lay for p in paths for lay in load_layouts(p)]
+    if types:
+        layouts = [lay for lay in layouts if lay.slot is not None and lay.slot.parking_type.value in types]
+        if not layouts:
+            raise ValueError(f"--layouts: no layout with a slot of type {', '.join(types)}")
+    return unique(layouts)
+
+
 def load_case_file(path: str | Path) -> list[Scenario]:
     """Cases from a JSON list of objects or a CSV with a header row, fields ``CASE_FIELDS``.
 

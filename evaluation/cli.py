@@ -43,40 +43,19 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cases(args: argparse.Namespace):
-    """The cases to run: a case file's (filtered by --types) or a grid sample's; a file's
-    repeats are reported and run once."""
-    from .cases import from_sample, load_case_file
-    from .runner import unique
+    """The cases (``--cases``/``--sample``) or layouts (``--layouts``) to run, filtered by
+    ``--types``; repeats are reported and run once."""
+    from .cases import cases_from, layouts_from
 
-    if not args.cases:
-        return from_sample(args.sample, types=args.types)
-    cases = load_case_file(args.cases)
-    if args.types:
-        cases = [sc for sc in cases if sc.parking_type.value in args.types]
-        if not cases:
-            raise ValueError(f"{args.cases}: no case of type {', '.join(args.types)}")
-    cases, repeats = unique(cases)
+    if getattr(args, "layouts", None):
+        items, repeats = layouts_from(args.layouts, args.types)
+        what = "--layouts"
+    else:
+        items, repeats = cases_from(args.sample, args.cases, args.types)
+        what = args.cases
     if repeats:
-        print(f"mirrorpark: note: {args.cases}: {repeats} repeated case(s) run once", file=sys.stderr)
-    return cases
-
-
-def _layouts(args: argparse.Namespace):
-    """The layouts of ``--layouts`` (files and folders), filtered by ``--types``; a name
-    that repeats is reported and run once."""
-    from mirrorpark_env.layout_io import load_layouts
-
-    from .runner import unique
-
-    layouts = [lay for p in args.layouts for lay in load_layouts(p)]
-    if args.types:
-        layouts = [lay for lay in layouts if lay.slot is not None and lay.slot.parking_type.value in args.types]
-        if not layouts:
-            raise ValueError(f"--layouts: no layout with a slot of type {', '.join(args.types)}")
-    layouts, repeats = unique(layouts)
-    if repeats:
-        print(f"mirrorpark: note: --layouts: {repeats} layout name(s) repeated; run once", file=sys.stderr)
-    return layouts
+        print(f"mirrorpark: note: {what}: {repeats} repeated case(s) run once", file=sys.stderr)
+    return items
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
@@ -84,7 +63,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from .runner import evaluate
     from .store import read_results
 
-    scenarios = _layouts(args) if args.layouts else _cases(args)
+    scenarios = _cases(args)
     out = Path(args.out)
     store = evaluate(
         args.planner,

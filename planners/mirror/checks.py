@@ -3,10 +3,12 @@ verdict, the true cost and the merit that SCP accepts steps by, and the safe sto
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from mirrorpark_env.angles import unwrap_near
 from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import TruthModel
 
@@ -146,3 +148,18 @@ class Checks:
                     np.array(cmds), real, Candidate(cand.direction, sw), S, line, real, cost, (pos_err, th_err), True
                 )
         return None
+
+
+def converged_to(real: np.ndarray, ref: np.ndarray, cfg: MirrorPlannerConfig) -> bool:
+    """An SCP round's rollout lies within the convergence tolerances of its reference."""
+    dp = np.hypot(real[:, 0] - ref[:, 0], real[:, 1] - ref[:, 1]).max()
+    dth = np.abs(real[:, 2] - ref[:, 2]).max()
+    return dp < cfg.converge_position and dth < cfg.converge_heading
+
+
+def same_pose(goal, target) -> bool:
+    """Within 1e-6 in position and heading (headings compared modulo 2 pi)."""
+    return (
+        math.hypot(goal[0] - target[0], goal[1] - target[1]) < 1e-6
+        and abs(unwrap_near(target[2], goal[2]) - goal[2]) < 1e-6
+    )

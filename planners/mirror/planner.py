@@ -1,24 +1,23 @@
 """The mirrored-target planner: one plan = one direction switch (paper II.C-E).
 
-Decision variables: planned states xi_0..xi_N, controls u_0..u_{N-1}, and the switch
-point S. The planned motion is monodirectional; at the switch step s the car stands
-(v_s = 0) and from then on executes negated commands (Eq. 42), so its real pose is the
-planned pose reflected through S: real = (2 S - p, theta) (Theorem 2, ``frames.py``).
+Variables: planned states xi_0..xi_N, controls u_0..u_{N-1}, the switch point S. The planned
+motion is monodirectional; at the switch step s the car stands (v_s = 0) and from then on
+executes negated commands (Eq. 42), so its real pose is the planned pose reflected
+through S: real = (2 S - p, theta) (Theorem 2, ``frames.py``).
 Exactly so with the actuator lags too: at s the planned lag states are the real ones
 negated, which the dynamics row of step s encodes (``FLIP``). Consequences, all linear
 for fixed s (``qp.py``):
 
 - the mirrored target is 2 S - p_target; the cost pulls the planned poses to it, which is
   the real pose error after the switch (and terminal error at N);
-- S lies on the mirror line (parallel) or beyond its lower bound (reverse, angle);
+- in the natural order S lies in Theorem 1's band (parallel), beyond Eqs. 5-6 (others);
 - obstacle constraints are written on the real body: before s on p + R(theta) c, after s
   on 2 S - p + R(theta) c (the flipped body against obstacles reflected through S).
 
 Solving (Algorithm I inside sequential convex programming): a QP without obstacles; the
 exact footprint check of the rolled-out plan finds the colliding steps; disjunctive
-obstacle rows (Eq. 40, ``obstacles.py``) are added at those steps only and the MIQP is
-solved by branch and bound; repeat until the plan is clear, re-linearising about each
-rollout. The first reference comes from ``seeds.py``; checks and scores from ``checks.py``.
+obstacle rows (Eq. 40, ``obstacles.py``) are added at those steps only, the MIQP solved by
+branch and bound; repeat until clear, re-linearising about each rollout (``seeds.py``).
 """
 
 from __future__ import annotations
@@ -34,7 +33,7 @@ from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import TruthModel, VehicleState
 
 from ..base import PlanStats
-from .checks import Checks, Start
+from .checks import Checks, Start, converged_to, same_pose
 from .config import MirrorPlannerConfig
 from .frames import FLIP, XI_TH, planned_controls, real_commands, to_planned
 from .guide import GuideSearch
@@ -293,7 +292,7 @@ class MirrorPlanner:
                 ref = new
                 continue
             if new.merit < ref.merit - 1e-6:
-                converged = _converged(real, ref.real, cfg)
+                converged = converged_to(real, ref.real, cfg)
                 ref = new
                 trust_scale = max(trust_scale / 2.0, 0.25)
                 if usable and (converged or self.checks.settled(real, goal, theta_t)):
@@ -335,8 +334,7 @@ class MirrorPlanner:
         return max(0.0, -band_margin(self.p, goal, pose, *self._band_args(cand, goal)))
 
     def _is_target(self, goal: np.ndarray) -> bool:
-        t = self.g.target
-        return math.hypot(goal[0] - t[0], goal[1] - t[1]) < 1e-6 and abs(unwrap_near(t[2], goal[2]) - goal[2]) < 1e-6
+        return same_pose(goal, self.g.target)
 
     def _score(self, real, u, cand, goal, theta_t, start, line, band: bool, clear_plans: list[Plan]):
         """(reference, colliding (step, obstacle) pairs, usable) of a rollout; a usable one
@@ -401,9 +399,3 @@ class MirrorPlanner:
         S = tuple(real[cand.switch, :2]) if cand.switch is not None else None
         planned = to_planned(real_half, cand, self.cfg.model_substeps)
         return Plan(real_commands(u_planned, cand), real, cand, S, line, planned, cost, (pos_err, th_err), True)
-
-
-def _converged(real: np.ndarray, ref: np.ndarray, cfg: MirrorPlannerConfig) -> bool:
-    dp = np.hypot(real[:, 0] - ref[:, 0], real[:, 1] - ref[:, 1]).max()
-    dth = np.abs(real[:, 2] - ref[:, 2]).max()
-    return dp < cfg.converge_position and dth < cfg.converge_heading
