@@ -383,7 +383,6 @@ class MirrorPlanner:
                 return plan
         return None
 
-    # --------------------------------------------------------------- rollout
     def _rollout(self, xi0: np.ndarray, u_planned: np.ndarray, cand: Candidate) -> np.ndarray:
         """Real states at every half step: (2N + 1, 6); even rows are the control steps."""
         sub = self.coarse.rollout(xi0, real_commands(u_planned, cand))[:, :6]
