@@ -87,9 +87,9 @@ def draw_layout(layout: Layout, rows: pd.DataFrame, path: Path) -> Path:
         ax.add_patch(Patch(c, closed=True, fill=False, ec="tab:orange", lw=1.2))
         e = layout.slot.entrance
         ax.plot(*np.array([c[e], c[(e + 1) % 4]]).T, color="tab:orange", lw=2.5)
-    for pose, color, label in ((layout.start, "tab:blue", "start"), (layout.target, "tab:green", "target")):
+    for pose, style, label in ((layout.start, "-", "start"), (layout.target, "--", "target")):
         fp = footprint(v, *pose)
-        ax.add_patch(Patch(fp, closed=True, fill=False, ec=color, lw=1.2, label=label))
+        ax.add_patch(Patch(fp, closed=True, fill=False, ec="k", ls=style, lw=1.0, label=label))
     for _, r in rows.iterrows():
         if isinstance(r.get("path_x"), (list, np.ndarray)) and len(r["path_x"]):
             mark = "parked" if r["success"] else "not parked"
