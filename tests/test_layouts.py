@@ -12,6 +12,7 @@ from shapely.geometry import Point, Polygon
 from shapely.ops import unary_union
 
 import mirrorpark_env  # noqa: F401
+from evaluation.cases import from_sample
 from evaluation.registry import make_policy
 from mirrorpark_env.decompose import convex_parts
 from mirrorpark_env.layout import Layout, Slot
@@ -191,14 +192,19 @@ def _episode(env, policy, spec):
     return info, path
 
 
-@pytest.mark.parametrize("planner", ["mirror", "hybrid-astar"])
-def test_a_grid_case_read_back_as_a_layout_gives_the_same_episode(tmp_path, planner):
+FIXED = ("parallel_rw5.00_sl6.50_sw2.50_th+0_y2.00", "reverse_rw6.00_sl4.82_sw2.37_th+20_y3.00")
+
+
+@pytest.mark.parametrize(
+    ("planner", "cases"),
+    [
+        ("mirror", [sc.case_id for sc in from_sample("smoke")[::10]]),  # 9 cases, every type, parked or not
+        ("hybrid-astar", [*FIXED, "angle_rw5.50_sl4.82_sw2.17_th-10_y2.50"]),
+    ],
+)
+def test_a_grid_case_read_back_as_a_layout_gives_the_same_episode(tmp_path, planner, cases):
     env = gym.make("MirrorPark-v0")
-    for cid in (
-        "parallel_rw5.00_sl6.50_sw2.50_th+0_y2.00",
-        "reverse_rw6.00_sl4.82_sw2.37_th+20_y3.00",
-        "angle_rw5.50_sl4.82_sw2.17_th-10_y2.50",
-    ):
+    for cid in cases:
         sc = Scenario.from_case_id(cid)
         f = write_layout(grid_layout(sc, P), tmp_path / f"{cid}.json")
         a, pa = _episode(env, make_policy(planner), sc)
@@ -298,3 +304,24 @@ def test_mirror_parks_every_comfortable_tpcap_layout():
             continue
         info, _ = _episode(env, make_policy("mirror"), lay)
         assert info["is_success"] and not info["collision"], lay.name
+
+
+def test_evaluate_layouts_writes_rows_paths_and_report_and_resumes(tmp_path):
+    from evaluation.cli import main
+    from evaluation.store import read_results
+
+    folder = tmp_path / "lay"
+    folder.mkdir()
+    for name in ("per01.csv", "ang01.csv"):
+        (folder / name).write_text((TPCAP / name).read_text())
+    args = ["evaluate", "--planner", "mirror", "--layouts", str(folder), "--out", str(tmp_path / "r")]
+    assert main([*args, "--workers", "1", "--quiet"]) == 0
+    df = read_results([tmp_path / "r"])
+    assert sorted(df["case_id"]) == ["ang01", "per01"] and df["success"].all()
+    assert all(len(x) == len(y) > 10 for x, y in zip(df["path_x"], df["path_y"]))
+    report = (tmp_path / "r" / "layouts.md").read_text()
+    assert "| per01 | mirror | reverse |" in report and (tmp_path / "r" / "img" / "per01.png").exists()
+    assert main([*args, "--workers", "1", "--quiet"]) == 0  # resumes: nothing left to run
+    again = read_results([tmp_path / "r"])
+    assert len(again) == 2
+    assert sorted(again["episode_wall_s"]) == sorted(df["episode_wall_s"])  # the same rows, not rerun
