@@ -21,6 +21,23 @@ def from_sample(name: str, types: list[str] | None = None, seed: int | None = No
     return [grid.scenario(int(i)) for i in idx]
 
 
+def chunk(items: list, spec: str | None) -> list:
+    """Chunk ``K/N`` (1-based) of ``items``: the K-th of N contiguous, near-equal slices.
+
+    The same list and spec give the same cases on any machine, so a long run can go in
+    pieces, a session each, and its pieces be committed one by one."""
+    if not spec:
+        return items
+    try:
+        k, n = (int(v) for v in spec.split("/"))
+    except ValueError:
+        raise ValueError(f"--chunk: expected K/N with whole numbers, e.g. 3/16, got {spec!r}") from None
+    if not 1 <= k <= n:
+        raise ValueError(f"--chunk: K must be in 1..N, got {spec!r}")
+    lo, hi = (len(items) * (k - 1)) // n, (len(items) * k) // n
+    return items[lo:hi]
+
+
 def cases_from(sample: str, case_file: str | None, types: list[str] | None) -> tuple[list[Scenario], int]:
     """A case file's cases (filtered by ``types``, repeats dropped) or a grid sample's, and
     how many repeats were dropped."""

@@ -45,7 +45,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def _cases(args: argparse.Namespace):
     """The cases (``--cases``/``--sample``) or layouts (``--layouts``) to run, filtered by
     ``--types``; repeats are reported and run once."""
-    from .cases import cases_from, layouts_from
+    from .cases import cases_from, chunk, layouts_from
 
     if getattr(args, "layouts", None):
         items, repeats = layouts_from(args.layouts, args.types)
@@ -55,7 +55,7 @@ def _cases(args: argparse.Namespace):
         what = args.cases
     if repeats:
         print(f"mirrorpark: note: {what}: {repeats} repeated case(s) run once", file=sys.stderr)
-    return items
+    return chunk(items, getattr(args, "chunk", None))
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
@@ -77,6 +77,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     df = read_results([out])
     ids = {sc.case_id for sc in scenarios}
     df = df[df["case_id"].isin(ids) & (df["planner"] == args.planner)]
+    if args.export:
+        from .store import export_table
+
+        print(f"wrote {export_table(df, args.export, args.planner, args.chunk)}", file=sys.stderr)
     s = summary(df, args.planner)
     if args.layouts:
         from .layout_report import write_layout_report
@@ -219,6 +223,17 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="layout files or folders (native .yaml/.json, TPCAP .csv) instead of grid cases; "
         "writes OUT/layouts.md and a figure per layout",
+    )
+    e.add_argument(
+        "--chunk",
+        default=None,
+        help="K/N: run only the K-th of N equal slices of the cases (a long run in pieces)",
+    )
+    e.add_argument(
+        "--export",
+        default=None,
+        help="folder for the run's compact table (the report's columns, Parquet): "
+        "<planner>[-chunkK-of-N].parquet, a file small enough to commit",
     )
     e.add_argument("--backend", default="local", choices=["local", "ray"])
     e.add_argument("--address", default=None, help="Ray cluster address (default: start a local Ray)")

@@ -254,3 +254,41 @@ def read_results(paths: list[str | Path]) -> pd.DataFrame:
     if not frames:
         raise ValueError("no results given")
     return pd.concat(frames, ignore_index=True)
+
+
+# What the report, metrics and failure analysis read; not tracebacks or layout paths.
+EXPORT_COLUMNS = (
+    "planner", "case_id", "parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "y0", "y1",
+    "start_x_offset", "feasible", "success", "failed_criterion", "failure_cause", "failure_amount", "collision",
+    "heading_error_deg", "switches", "parking_time_s", "path_length_m", "planning_calls",
+    "plan_times_ms", "plan_iterations", "plan_qp_solves", "plan_nodes",
+    "safety_net_calls", "setup_ms", "planner_status", "error", "inside_slot", "min_clearance_m",
+    "speed_at_min_clearance", "min_clearance_away_m", "speed_at_min_clearance_away", "episode_wall_s",
+    "M_f", "M_r", "M_e", "M_fl", "M_fr", "M_rl", "M_rr",
+)  # fmt: skip
+
+
+def export_table(df: pd.DataFrame, folder: str | Path, planner: str, chunk: str | None = None) -> Path:
+    """``df``'s rows in the report's columns, sorted by case, to ``folder/<planner>[-chunkK-of-N].parquet``
+    (zstd; replaced whole, atomically). ``mirrorpark report`` reads such files directly.
+    Per-call medians and maxima, steps and y1 are left out: they follow from what is kept."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    name = planner.replace(":", "_").replace("/", "_")
+    if chunk:
+        k, n = chunk.split("/")
+        name += f"-chunk{int(k):02d}-of-{int(n):02d}"
+    out = df[[c for c in EXPORT_COLUMNS if c in df.columns]].sort_values("case_id").reset_index(drop=True)
+    # Rounded to what each measure needs: margins, clearances and failure amounts to 0.1 mm,
+    # other lengths, angles and speeds to 1e-3, times to 0.1 ms (episode wall time 10 ms).
+    # With zstd at level 19 a row takes about 70 bytes: a full-grid table is about 5 MB.
+    fine = {"failure_amount", "min_clearance_m", "min_clearance_away_m", *(c for c in out if c.startswith("M_"))}
+    for c in out.columns:
+        if out[c].dtype.kind == "f" and c not in ("road_width", "slot_length", "slot_width", "theta0_deg", "y0"):
+            out[c] = out[c].round(1 if c.endswith("_ms") else 2 if c.endswith("_s") else 4 if c in fine else 3)
+    if "plan_times_ms" in out:
+        out["plan_times_ms"] = [None if t is None else [round(float(v), 1) for v in t] for t in out["plan_times_ms"]]
+    tmp = folder / f".{name}.{secrets.token_hex(4)}.tmp"
+    out.to_parquet(tmp, index=False, compression="zstd", compression_level=19)
+    os.replace(tmp, folder / f"{name}.parquet")
+    return folder / f"{name}.parquet"

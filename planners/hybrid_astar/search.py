@@ -56,7 +56,7 @@ class HybridAStarConfig(StrictModel):
     goal_margin: float = Field(0.05, ge=0, le=1)  # ISO margins plus this, for the goal set
     goal_heading_deg: float = Field(2.0, ge=0, le=45)
     window_margin: float = Field(10.0, gt=0, le=100)  # search window beyond the slot and start
-    max_expansions: int = Field(32_000, ge=1)  # the budget, in work: node expansions per call (~10 s here)
+    max_expansions: int = Field(10_000, ge=1)  # the budget, in work: node expansions per call (~3 s here)
     wall_clock_limit_s: float = Field(120.0, gt=0, le=3600)  # a safety net only; a call where it fires says so
 
     @model_validator(mode="after")
