@@ -30,6 +30,11 @@ def test_gymnasium_check_env(monkeypatch):
     gym_check_env(env.unwrapped)
 
 
+def test_gymnasium_check_env_with_lidar():
+    env = gym.make("MirrorPark-v0", config={"lidar": {"rays": 16}})
+    gym_check_env(env.unwrapped, skip_render_check=True)
+
+
 def test_human_render_mode_resets_steps_and_closes(monkeypatch):
     monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
     env = make(render_mode="human")
