@@ -15,6 +15,7 @@ import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario, VehicleParams
 from planners.base import run_episode
 from planners.common.clearance import START_RELIEF, gaps
+from planners.mirror.guide import GuideSearch
 from planners.mirror.mirror_line import (
     parallel_dark_point,
 )
@@ -171,3 +172,18 @@ def test_a_car_at_the_kerb_may_leave_it_closer_than_the_gap():
     near = np.hypot(poses[:, 0] - poses[0, 0], poses[:, 1] - poses[0, 1]) < START_RELIEF
     assert _shapely_gap(g, poses[1:][near[1:]]) >= search.cfg.start_gap - 1e-6
     assert _shapely_gap(g, poses[~near]) >= search.cfg.gap - 1e-6
+
+
+def test_a_prepared_search_is_shared_within_a_slot_and_searches_as_a_fresh_one():
+    from planners.mirror.guide import prepared_search
+
+    a = Scenario.from_case_id("reverse_rw5.00_sl4.82_sw2.37_th+20_y2.00").build()
+    b = Scenario.from_case_id("reverse_rw5.00_sl4.82_sw2.37_th-40_y3.20").build()  # same slot, other start
+    c = Scenario.from_case_id("reverse_rw5.50_sl4.82_sw2.37_th-40_y3.20").build()  # another road
+    shared = prepared_search(a)
+    assert prepared_search(b) is shared and prepared_search(c) is not shared
+    fresh = GuideSearch(b)
+    fresh.road_tails()
+    pose = np.array([b.start.x, b.start.y, b.start.theta])
+    got, want = shared.search(pose), fresh.search(pose)
+    assert np.array_equal(got.path.poses, want.path.poses) and got.cost == want.cost

@@ -17,7 +17,7 @@ from ..base import PlanStats
 from ..common.path import Path
 from ..common.tracker import TrackerConfig
 from ..common.tracking import TrackingPolicy
-from .guide import GuideConfig, GuideSearch
+from .guide import GuideConfig, GuideSearch, prepared_search
 
 
 class GuideOnlyPolicy(TrackingPolicy):
@@ -30,8 +30,7 @@ class GuideOnlyPolicy(TrackingPolicy):
 
     def prepare(self, geometry: ScenarioGeometry) -> None:
         t0 = time.perf_counter()
-        self.search = GuideSearch(geometry, self.guide_config)
-        self.search.road_tails()  # what depends on the slot alone, as the mirror policy does at reset
+        self.search = prepared_search(geometry, self.guide_config)  # the slot's part, as the mirror policy's
         self.setup_time_s = time.perf_counter() - t0
 
     def find_path(self, pose) -> tuple[Path | None, PlanStats]:

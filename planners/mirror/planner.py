@@ -36,7 +36,7 @@ from ..base import PlanStats
 from .checks import Checks, Start, converged_to, same_pose
 from .config import MirrorPlannerConfig
 from .frames import FLIP, XI_TH, planned_controls, real_commands, to_planned
-from .guide import GuideSearch
+from .guide import GuideSearch, prepared_search
 from .mirror_line import MirrorLine, SwitchBand, band_margin, mirror_line, switch_band
 from .model import PlanningModel
 from .obstacles import ObstacleRows
@@ -85,10 +85,10 @@ class MirrorPlanner:
 
     def prepare(self) -> None:
         """Build what depends on the slot alone, once per episode (the policy does it at
-        reset, as a car does once it has measured the slot): the guide's tails."""
+        reset, as a car does once it has measured the slot): the guide's tails, shared by
+        episodes in the same slot (``guide.prepared_search``)."""
         if self._guide is None and self.guided:
-            self._guide = GuideSearch(self.g)
-            self._guide.road_tails()
+            self._guide = prepared_search(self.g)
 
     # ------------------------------------------------------------------ plan
     def plan(self, state: VehicleState, candidates: list[Candidate] | None = None) -> Plan | None:
