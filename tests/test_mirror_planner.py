@@ -309,3 +309,22 @@ def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_me
     ref = Enumeration(bb.qp_backend).solve(qp, disj, active)
     assert res.status == "solved" and res.nodes < ref.qp_solves
     assert res.obj == pytest.approx(ref.obj, rel=1e-4, abs=1e-6)
+
+
+def test_the_policy_replans_once_the_rest_of_its_plan_would_only_creep():
+    from types import SimpleNamespace
+
+    from mirrorpark_env.vehicle import VehicleState
+
+    policy = MirrorPolicy()
+    states = np.zeros((61, 6))
+    states[:30, 3] = 1.0  # 3 m in the first 3 s ...
+    states[30:, 3] = -0.001  # ... then 3 mm of creeping after the switch
+    policy.plan, policy.k = SimpleNamespace(states=states), 35
+    assert policy._idle(VehicleState(0, 0, 0, v=0.0))
+    assert not policy._idle(VehicleState(0, 0, 0, v=0.3))  # still moving
+    states[40:50, 3] = -0.2  # the rest still moves the car 20 cm
+    assert not policy._idle(VehicleState(0, 0, 0, v=0.0))
+    policy.k = 0  # a plan not yet begun
+    states[30:, 3] = 0.0
+    assert not policy._idle(VehicleState(0, 0, 0, v=0.0))

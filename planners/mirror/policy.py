@@ -25,6 +25,9 @@ from .config import MirrorPlannerConfig, MirrorPolicyConfig
 from .planner import MirrorPlanner
 from .plans import Plan
 
+IDLE_SPEED = 0.05  # [m/s] the car stands (the ISO check's stop speed)
+IDLE_TRAVEL = 0.05  # [m] a plan whose rest moves the car less than this has done its work
+
 
 class MirrorPolicy(Policy):
     name = "mirror"
@@ -65,13 +68,24 @@ class MirrorPolicy(Policy):
         if self.planner is None:
             raise RuntimeError("MirrorPolicy: call reset(geometry) first")
         s: VehicleState = info["vehicle_state"]
-        if not self.gave_up and (self.plan is None or self.k >= len(self.plan.commands) or self._drifted(s)):
+        if not self.gave_up and (
+            self.plan is None or self.k >= len(self.plan.commands) or self._drifted(s) or self._idle(s)
+        ):
             self._replan(s)
         if self.plan is None:
             return self._brake(s)
         a, d = self.plan.commands[self.k]
         self.k += 1
         return to_action(self.params, float(a), float(d))
+
+    def _idle(self, s: VehicleState) -> bool:
+        """The car stands and the rest of the plan would move it less than ``IDLE_TRAVEL``:
+        the plan has done its work (a leg after the switch that only creeps, a goal reached
+        early), and waiting out the horizon would only add parking time."""
+        if abs(s.v) >= IDLE_SPEED or self.k == 0:
+            return False
+        rest = np.abs(self.plan.states[self.k :, 3]).sum() * self.config.dt
+        return bool(rest < IDLE_TRAVEL)
 
     def _drifted(self, s: VehicleState) -> bool:
         ref = self.plan.states[self.k]
