@@ -277,7 +277,7 @@ def test_the_papers_linearised_model_against_a_step_by_hand():
 
 
 def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_meets(monkeypatch):
-    """The MIQP of a real planning call (an angle start at -30 deg), cut down to as many of
+    """The MIQP of a real planning call (a parallel start at +40 deg), cut down to as many of
     its disjunctions as enumeration can take (<= 4,096 assignments; the rows of the others
     stay switched off), solved by branch and bound with the planner's own backend and node
     budget, has the optimum that exhaustive enumeration finds."""
@@ -295,7 +295,7 @@ def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_me
         return solve(self, qp, disj, active, preferred)
 
     monkeypatch.setattr(solvers.BranchAndBound, "solve", spy)
-    run_episode(gym.make("MirrorPark-v0"), MirrorPolicy(), "angle_rw4.50_sl4.82_sw2.92_th-30_y2.70")
+    run_episode(gym.make("MirrorPark-v0"), MirrorPolicy(), "parallel_rw4.00_sl5.02_sw2.50_th+40_y1.10")
     assert captured, "the planner met no disjunctive MIQP"
     bb, qp, disj, active, preferred = captured[0]
     keep = []

@@ -46,9 +46,9 @@ class MirrorPlannerConfig(StrictModel):
     time_limit_s: float = Field(5.0, gt=0)  # branch and bound's wall-clock safety net per MIQP (recorded)
     guide: bool = True  # seed each plan from a geometric guide (guide.py); SCP only
     guide_iterations: int = Field(2, ge=1, le=1000)  # SCP rounds on a guided candidate
-    seed_speed: float = Field(1.5, gt=0, le=3)  # [m/s] cruise speed of the guided seed rollout
+    seed_speed: float = Field(2.0, gt=0, le=3)  # [m/s] cruise speed of the guided seed rollout
     # [m/s] more seed speeds for a plan with a switch: other switch steps, the cheapest plan used
-    switch_speeds: tuple[Annotated[float, Field(gt=0, le=3)], ...] = (1.1, 2.0)
+    switch_speeds: tuple[Annotated[float, Field(gt=0, le=3)], ...] = (1.5, 2.5)
     seed_accel: float = Field(1.5, gt=0, le=3)  # [m/s^2] its acceleration and planned deceleration
 
 
