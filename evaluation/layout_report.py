@@ -81,7 +81,7 @@ def draw_layout(layout: Layout, rows: pd.DataFrame, path: Path) -> Path:
     for poly in layout.obstacles:
         ax.add_patch(Patch(poly, closed=True, fc="0.45", ec="0.2", lw=0.8))
     if layout.boundary is not None:
-        ax.add_patch(Patch(layout.boundary, closed=True, fill=False, ec="k", lw=1.2, ls="--"))
+        ax.add_patch(Patch(layout.boundary, closed=True, fill=False, ec="0.2", lw=2.5, label="boundary"))
     if layout.slot is not None:
         c = layout.slot.corners
         ax.add_patch(Patch(c, closed=True, fill=False, ec="tab:orange", lw=1.2))
@@ -95,12 +95,13 @@ def draw_layout(layout: Layout, rows: pd.DataFrame, path: Path) -> Path:
             mark = "parked" if r["success"] else "not parked"
             ax.plot(r["path_x"], r["path_y"], lw=1.2, label=f"{r['planner']} ({mark})")
     ax.set_aspect("equal")
-    xs = np.concatenate([np.asarray(p)[:, 0] for p in layout.obstacles] + [[layout.start[0], layout.target[0]]])
-    ys = np.concatenate([np.asarray(p)[:, 1] for p in layout.obstacles] + [[layout.start[1], layout.target[1]]])
+    shapes = [*layout.obstacles, *([layout.boundary] if layout.boundary is not None else [])]
+    xs = np.concatenate([np.asarray(p)[:, 0] for p in shapes] + [[layout.start[0], layout.target[0]]])
+    ys = np.concatenate([np.asarray(p)[:, 1] for p in shapes] + [[layout.start[1], layout.target[1]]])
     cx, cy = 0.5 * (layout.start[0] + layout.target[0]), 0.5 * (layout.start[1] + layout.target[1])
     half = 12.0
-    ax.set_xlim(max(xs.min(), cx - half), min(xs.max(), cx + half))
-    ax.set_ylim(max(ys.min(), cy - half), min(ys.max(), cy + half))
+    ax.set_xlim(max(xs.min(), cx - half) - 0.5, min(xs.max(), cx + half) + 0.5)
+    ax.set_ylim(max(ys.min(), cy - half) - 0.5, min(ys.max(), cy + half) + 0.5)
     frame = "" if layout.origin == (0.0, 0.0) else f" (frame origin at {layout.origin[0]:.0f}, {layout.origin[1]:.0f})"
     ax.set_title(f"{layout.name}{frame}", fontsize=9)
     ax.legend(fontsize=7, loc="best")

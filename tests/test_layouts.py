@@ -325,3 +325,14 @@ def test_evaluate_layouts_writes_rows_paths_and_report_and_resumes(tmp_path):
     again = read_results([tmp_path / "r"])
     assert len(again) == 2
     assert sorted(again["episode_wall_s"]) == sorted(df["episode_wall_s"])  # the same rows, not rerun
+
+
+def test_the_example_layouts_load_as_documented():
+    examples = {lay.name: lay for lay in load_layouts(TPCAP.parent / "examples")}
+    assert set(examples) == {"open_lot", "garage_slot"}
+    lot = examples["open_lot"]
+    assert lot.slot is None and lot.boundary is not None and len(lot.parts[3]) == 2  # the planter, cut
+    g = lot.build()
+    assert g.checker.collides(0.0, 7.0, 0.0)[0]  # beyond the boundary's inner corner: the wall
+    assert not g.checker.collides(2.0, 2.5, 0.0)[0]
+    assert examples["garage_slot"].slot.parking_type.value == "reverse"
