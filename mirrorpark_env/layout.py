@@ -24,7 +24,7 @@ from .angles import wrap_angle
 from .config import ParkingType
 from .decompose import convex_parts
 from .geometry import ConvexSet, inward_half_plane
-from .vehicle import VehicleParams, VehicleState
+from .vehicle import VehicleParams, VehicleState, footprint
 
 if TYPE_CHECKING:
     from .scenario import Scenario, ScenarioGeometry
@@ -193,34 +193,20 @@ class Layout:
         from .scenario import ScenarioGeometry
 
         vehicle = vehicle or VehicleParams.table_ii()
-        parts = [q for ps in self.parts for q in ps]
-        obstacles = ConvexSet.from_polygons(parts)
-        start, target = self.start, self.target
-        checker = _checker(obstacles, vehicle)
-        for what, pose in (("start", start), ("target", target)):
-            depth = checker.penetration(*pose)[0] if len(parts) else np.zeros(1)
-            if depth.max() > OVERLAP_TOL:
-                k = int(np.argmax(depth))
-                raise ValueError(f"{self.name}: {what}: the car at {pose} overlaps obstacle part {k}")
         slot, edges, ptype, sl, sw = None, (), None, math.nan, math.nan
         if self.slot is not None:
             s = self.slot
-            names = s.edge_names(target[2])
+            names = s.edge_names(self.target[2])
             slot, ptype, sl, sw = s.corners, s.parking_type, s.length, s.width
             edges = tuple((names[i], inward_half_plane(slot[i], slot[(i + 1) % 4], s.centre)) for i in range(4))
-            body = _body(vehicle, target)
-            inside = min(float(np.min(body @ np.array(hp.normal) - hp.offset)) for _, hp in edges)
-            if inside < -OVERLAP_TOL:
-                raise ValueError(f"{self.name}: target: the car at the target pose is not inside the slot")
-        b = self.scene_bounds()
-        return ScenarioGeometry(
+        g = ScenarioGeometry(
             vehicle=vehicle,
-            obstacles=obstacles,
+            obstacles=ConvexSet.from_polygons([q for ps in self.parts for q in ps]),
             slot=slot,
             slot_edges=edges,
-            start=VehicleState(*start),
-            target=target,
-            bounds=b,
+            start=VehicleState(*self.start),
+            target=self.target,
+            bounds=self.scene_bounds(),
             road_width=self.road_width,
             parking_type=ptype,
             slot_length=sl,
@@ -228,6 +214,16 @@ class Layout:
             scenario=self.scenario,
             layout=self,
         )
+        for what, pose in (("start", self.start), ("target", self.target)):
+            depth = g.checker.penetration(*pose)[0] if len(g.obstacles) else np.zeros(1)
+            if depth.max() > OVERLAP_TOL:
+                k = int(np.argmax(depth))
+                raise ValueError(f"{self.name}: {what}: the car at {pose} overlaps obstacle part {k}")
+        if edges:
+            body = footprint(vehicle, *self.target)
+            if min(float(np.min(hp.signed_distance(body))) for _, hp in edges) < -OVERLAP_TOL:
+                raise ValueError(f"{self.name}: target: the car at the target pose is not inside the slot")
+        return g
 
     def recentred(self, beyond: float = 1000.0) -> Layout:
         """This layout moved so that the target lies at the origin, if anything in it lies
@@ -255,19 +251,6 @@ class Layout:
             road_width=self.road_width,
             origin=(float(self.origin[0] + o[0]), float(self.origin[1] + o[1])),
         )
-
-
-def _body(vehicle: VehicleParams, pose) -> np.ndarray:
-    x, y, th = pose
-    c, s = math.cos(th), math.sin(th)
-    b = vehicle.body_corners()
-    return np.stack([x + c * b[:, 0] - s * b[:, 1], y + s * b[:, 0] + c * b[:, 1]], axis=1)
-
-
-def _checker(obstacles: ConvexSet, vehicle: VehicleParams):
-    from .geometry import FootprintChecker
-
-    return FootprintChecker(obstacles, vehicle.front_length, vehicle.rear_overhang, 0.5 * vehicle.width)
 
 
 def _wall_outside(boundary: np.ndarray) -> list[np.ndarray]:

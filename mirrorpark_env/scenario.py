@@ -175,13 +175,6 @@ class ScenarioGeometry:
                 return hp
         raise KeyError(name)
 
-    @property
-    def name(self) -> str:
-        """The case id of a grid case, else the layout's name."""
-        if self.scenario is not None:
-            return self.scenario.case_id
-        return self.layout.name if self.layout is not None else "scene"
-
     @cached_property
     def checker(self) -> FootprintChecker:
         """Exact footprint-vs-obstacles collision test for this car and scene."""
