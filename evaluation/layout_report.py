@@ -124,6 +124,8 @@ def write_layout_report(df: pd.DataFrame, layouts: list[Layout], out: str | Path
     for c, f in (("slot_length", ".2f"), ("slot_width", ".2f"), ("parking_time_s", ".1f"), ("path_length_m", ".2f")):
         if c in show:
             show[c] = [_cell(v, f) for v in show[c]]
+    if "failure_cause" in show:
+        show["failure_cause"] = [v if isinstance(v, str) else "–" for v in show["failure_cause"]]
     if "plan_time_median_ms" in show:
         show["plan_time_median_ms"] = [_cell(v, ".1f") for v in show["plan_time_median_ms"]]
     lines += [*_markdown(show), ""]
