@@ -328,3 +328,10 @@ def test_the_policy_replans_once_the_rest_of_its_plan_would_only_creep():
     policy.k = 0  # a plan not yet begun
     states[30:, 3] = 0.0
     assert not policy._idle(VehicleState(0, 0, 0, v=0.0))
+
+
+def test_a_slot_without_an_iso_pose_is_refused_at_once():
+    policy = MirrorPolicy()
+    info, steps = run_episode(gym.make("MirrorPark-v0"), policy, "reverse_rw7.00_sl4.82_sw1.77_th+0_y3.00")
+    assert policy.status == "no_goal" and not policy.plans and steps == 1
+    assert not info["is_success"] and info["path_length"] == 0.0

@@ -16,10 +16,11 @@ from typing import Any
 import numpy as np
 
 from mirrorpark_env.angles import wrap_angle
+from mirrorpark_env.criteria import iso_pose_exists
 from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import VehicleState, to_action
 
-from ..base import Policy
+from ..base import PlanStats, Policy
 from ..common.tracker import hold_accel
 from .config import MirrorPlannerConfig, MirrorPolicyConfig
 from .planner import MirrorPlanner
@@ -48,17 +49,23 @@ class MirrorPolicy(Policy):
         self._wait = 0
 
     def reset(self, geometry: ScenarioGeometry) -> None:
+        """Prepare for ``geometry``. A slot that admits no ISO-compliant pose at all (too narrow
+        or too short for the car and the margins, ``criteria.iso_pose_exists``) is refused at
+        once, as a car refuses a gap it has measured: status ``no_goal``, the car stays."""
         t0 = time.perf_counter()
         self.planner = MirrorPlanner(geometry, self.config)
-        self.planner.prepare()
+        g = geometry
+        fits = bool(iso_pose_exists(g.parking_type.value, g.slot_length, g.slot_width, g.vehicle))
+        if fits:
+            self.planner.prepare()
         self.setup_time_s = time.perf_counter() - t0
         self.params = geometry.vehicle
         self.plan = None
         self.k = 0
         self._wait = 0
-        self.stats = []
+        self.stats = [] if fits else [PlanStats(0.0, "no_goal", detail={"reason": "no ISO pose in this slot"})]
         self.plans: list[Plan] = []
-        self.gave_up = False
+        self.gave_up = not fits
         self._failures = 0
         self._failed_at: tuple[float, float, float] | None = None  # standing pose of the last no-guide call
         self._best = {"guide_cost": math.inf, "stay_cost": math.inf}
@@ -138,7 +145,9 @@ class MirrorPolicy(Policy):
 
     @property
     def status(self) -> str:
-        return "gave_up" if self.gave_up else super().status
+        if self.gave_up:
+            return "no_goal" if self.stats and self.stats[-1].status == "no_goal" else "gave_up"
+        return super().status
 
 
 def _same_pose(a: tuple[float, float, float], b: tuple[float, float, float]) -> bool:
