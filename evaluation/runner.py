@@ -73,12 +73,14 @@ def layout_fields(lay: Layout) -> dict[str, Any]:
 
 
 def _feasible(case: Scenario | Layout) -> bool:
+    """Whether the case's slot admits an ISO pose (a layout without a slot: always)."""
     if isinstance(case, Layout):
-        s = case.slot
-        if s is None:
+        if case.slot is None:
             return True
-        return bool(iso_pose_exists(s.parking_type.value, s.length, s.width, VehicleParams.table_ii()))
-    return bool(iso_pose_exists(case.parking_type.value, case.slot_length, case.slot_width, VehicleParams.table_ii()))
+        ptype, sl, sw = case.slot.parking_type, case.slot.length, case.slot.width
+    else:
+        ptype, sl, sw = case.parking_type, case.slot_length, case.slot_width
+    return bool(iso_pose_exists(ptype.value, sl, sw, VehicleParams.table_ii()))
 
 
 def unique(scenarios: Iterable[Scenario]) -> tuple[list[Scenario], int]:
