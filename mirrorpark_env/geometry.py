@@ -99,13 +99,12 @@ class FootprintChecker:
         self.half_length = 0.5 * (front + rear)
         k, v = obstacles.vertices.shape[:2]
         self._k, self._v = k, v
-        nx = obstacles.normals[..., 0].reshape(-1)
-        ny = obstacles.normals[..., 1].reshape(-1)
-        self._n = np.stack([nx, ny])  # (2, KV): a point's coordinate along each normal
-        self._m = np.block([[nx, ny], [ny, -nx]])  # (2, 2KV): [cos, sin] -> (u.n, v.n)
+        self._nx = obstacles.normals[..., 0].reshape(1, -1)  # (1, KV)
+        self._ny = obstacles.normals[..., 1].reshape(1, -1)
         self._pmin = obstacles.proj_min.reshape(-1)
         self._pmax = obstacles.proj_max.reshape(-1)
-        self._verts = obstacles.vertices.reshape(-1, 2)  # (KV, 2)
+        self._vx = obstacles.vertices[..., 0].reshape(-1, 1)  # (KV, 1)
+        self._vy = obstacles.vertices[..., 1].reshape(-1, 1)
 
     def penetration(self, x, y, theta) -> np.ndarray:
         """Penetration depth of the footprint into each obstacle, (P, K); <= 0 when apart.
@@ -113,28 +112,30 @@ class FootprintChecker:
         Where the obstacle's own axes already separate a pair, the value is that (<= 0)
         overlap; otherwise it is the exact penetration depth (the SAT minimum).
         """
+        # Elementwise products only (no matmul): BLAS may fuse multiply-adds on one CPU and
+        # not on another, and a verdict must not depend on the machine.
         theta = np.asarray(theta, dtype=float).reshape(-1)
         n = len(theta)
-        cs = np.empty((n, 2))
-        c, s = np.cos(theta, out=cs[:, 0]), np.sin(theta, out=cs[:, 1])  # (P, 2)
-        o = self.center_offset * cs  # body centres
-        o[:, 0] += np.asarray(x, dtype=float).reshape(-1)
-        o[:, 1] += np.asarray(y, dtype=float).reshape(-1)
-        pc = o @ self._n  # centre along each obstacle normal, (P, KV)
-        uv = np.abs(cs @ self._m)  # |u.n|, |v.n| per normal: the rectangle's half-extent along it
-        kv = self._k * self._v
-        ext = uv[:, :kv] * self.half_length + uv[:, kv:] * self.hw
+        c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]  # (P, 1)
+        ox = self.center_offset * c + np.asarray(x, dtype=float).reshape(-1, 1)  # body centres
+        oy = self.center_offset * s + np.asarray(y, dtype=float).reshape(-1, 1)
+        nx, ny = self._nx, self._ny
+        pc = ox * nx + oy * ny  # centre along each obstacle normal, (P, KV)
+        # |u.n| and |v.n| per normal: the rectangle's half-extent along it.
+        ext = np.abs(c * nx + s * ny) * self.half_length + np.abs(c * ny + s * -nx) * self.hw
         ov = np.minimum(pc + ext, self._pmax) - np.maximum(pc - ext, self._pmin)
         ov = ov.reshape(n, self._k, self._v).min(axis=2)  # (P, K)
         if not (ov > 0).any():
             return ov
         # The rectangle's own axes u = (c, s), v = (-s, c): project every obstacle vertex.
-        uv = np.concatenate((cs.T, np.stack((-s, c))), axis=1)  # (2, 2P)
-        proj = (self._verts @ uv).reshape(self._k, self._v, 2 * n)
-        centre = np.concatenate(((o * cs).sum(axis=1), o[:, 1] * c - o[:, 0] * s))  # (2P,)
-        half = np.repeat([self.half_length, self.hw], n)
-        ov_own = np.minimum(proj.max(axis=1), centre + half) - np.maximum(proj.min(axis=1), centre - half)
-        return np.minimum(ov, np.minimum(ov_own[:, :n], ov_own[:, n:]).T)
+        c, s, ox, oy = c.T, s.T, ox.T, oy.T  # (1, P)
+        pu = (self._vx * c + self._vy * s).reshape(self._k, self._v, n)
+        pw = (self._vx * -s + self._vy * c).reshape(self._k, self._v, n)
+        cu, cw = ox * c + oy * s, oy * c - ox * s  # (1, P)
+        hl, hw = self.half_length, self.hw
+        ov_u = np.minimum(pu.max(axis=1), cu + hl) - np.maximum(pu.min(axis=1), cu - hl)  # (K, P)
+        ov_w = np.minimum(pw.max(axis=1), cw + hw) - np.maximum(pw.min(axis=1), cw - hw)
+        return np.minimum(ov, np.minimum(ov_u, ov_w).T)
 
     def collides(self, x, y, theta, tol: float = COLLISION_TOL) -> np.ndarray:
         """For each pose: does the footprint overlap some obstacle deeper than ``tol``?"""

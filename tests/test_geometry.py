@@ -62,3 +62,26 @@ def test_corner_piercing_the_side_is_found():
 def test_non_convex_polygon_is_rejected():
     with pytest.raises(ValueError, match="not convex"):
         ConvexSet.from_polygons([np.array([[0, 0], [2, 0], [1, 0.2], [2, 2], [0, 2]])])
+
+
+@pytest.mark.parametrize("sc", SCENES, ids=lambda s: s.parking_type.value)
+def test_compiled_gaps_equal_the_checker_bit_for_bit(sc):
+    """The planners' kernel (``clearance.gaps``) returns exactly the negated
+    ``penetration(...).max(axis=1)`` of the numpy checker: batches with and without an
+    overlapping pose (the own-axes stage runs for a whole batch), of every size."""
+    from planners.common.clearance import gaps
+
+    g = sc.build()
+    rng = np.random.default_rng(11)
+    tx, ty, _ = g.target
+    overlapping = 0
+    for n in (1, 2, 7, 80, 400):
+        for spread in (0.3, 3.0):
+            poses = np.column_stack(
+                [tx + rng.normal(0, spread, n), ty + rng.normal(0, spread, n), rng.uniform(-4, 4, n)]
+            )
+            want = -g.checker.penetration(poses[:, 0], poses[:, 1], poses[:, 2]).max(axis=1)
+            got = gaps(g.checker, poses)
+            np.testing.assert_array_equal(got, want)
+            overlapping += int((want < 0).any())
+    assert overlapping >= 3  # the own-axes stage was exercised

@@ -165,3 +165,16 @@ def test_bad_config_is_rejected_naming_the_field():
         HybridAStarConfig(max_expansions=0)
     with pytest.raises(ValueError, match=r"steer_fraction\n.*less than or equal to 1"):
         HybridAStarConfig(steer_fraction=1.5)
+
+
+def test_reeds_shepp_path_placed_twice_equals_sampling_twice():
+    """The search solves a connection once and samples it at two spacings: the same poses
+    as solving it for each."""
+    rs = ReedsShepp(4.0)
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        a = (rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-math.pi, math.pi))
+        b = (rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-math.pi, math.pi))
+        p = rs.path(a, b)
+        for step in (0.05, 0.2):
+            np.testing.assert_array_equal(rs.place(a, b, p, step), rs.sample(a, b, step))

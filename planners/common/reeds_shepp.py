@@ -273,6 +273,16 @@ class ReedsShepp:
         self._set(self._b, goal)
         return self.space.distance(self._a, self._b)
 
+    def path(self, start, goal) -> tuple[tuple[int, ...], tuple[float, ...]]:
+        """The shortest path's segment kinds and signed lengths [m] (ompl's length picks the
+        word), for ``place``."""
+        return path(start, goal, self.radius, self.distance(start, goal))
+
+    def place(self, start, goal, rs_path, step: float) -> np.ndarray:
+        """Poses (n, 3) along ``rs_path`` (from ``path``), about ``step`` metres apart: one
+        solution sampled at several spacings."""
+        return place(start, [goal], [rs_path], self.radius, step)[0]
+
     def sample(self, start, goal, step: float) -> np.ndarray:
         """Poses (n, 3) along the shortest path, about ``step`` metres apart, ends included.
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydantic import Field, model_validator
 
+from mirrorpark_env.angles import wrap_angle
 from mirrorpark_env.config import StrictModel
 from mirrorpark_env.criteria import SuccessCriteria
 from mirrorpark_env.scenario import ScenarioGeometry
@@ -145,6 +146,8 @@ class HybridAStar:
     def in_goal_set(self, pose) -> bool:
         """ISO success at ``pose`` (standing still), with ``goal_margin`` and heading to spare."""
         x, y, th = (float(v) for v in pose)
+        if abs(wrap_angle(th - self.criteria.target_heading)) > self.goal_heading:
+            return False  # the verdict's own heading error, without its margins
         v = self.criteria.verdict(x, y, th, 0.0, 0.0, False)
         if not v.inside_slot or abs(v.heading_error) > self.goal_heading:
             return False
@@ -153,12 +156,13 @@ class HybridAStar:
 
     def _analytic(self, pose, goal) -> np.ndarray | None:
         """A clear Reeds-Shepp path from ``pose`` to ``goal``, or None."""
-        coarse = self.rs.sample(pose, goal, 4 * self.cfg.sample_step)
+        rs_path = self.rs.path(pose, goal)  # solved once, sampled at two spacings
+        coarse = self.rs.place(pose, goal, rs_path, 4 * self.cfg.sample_step)
         if (self._gaps(coarse) < np.minimum(self._required(coarse), self.cfg.clearance)).any() or not self._in_window(
             coarse
         ).all():
             return None  # a pose that close already rules the path out
-        fine = self.rs.sample(pose, goal, self.cfg.sample_step)
+        fine = self.rs.place(pose, goal, rs_path, self.cfg.sample_step)
         return fine if self.path_is_clear(fine) else None
 
     # -- search ---------------------------------------------------------------------
