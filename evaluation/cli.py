@@ -112,7 +112,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     from .report import write_report
     from .store import read_results
 
-    path = write_report(read_results(args.results), args.out, baseline=args.baseline)
+    path = write_report(read_results(args.results), args.out, baseline=args.baseline, notes=args.notes)
     print(f"wrote {path}")
     return 0
 
@@ -249,7 +249,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("report", help="write a Markdown report with figures from result folders or files")
     r.add_argument("results", nargs="+", help="results folders, .parquet or .jsonl files")
-    r.add_argument("--out", required=True)
+    r.add_argument("--out", required=True, help="a folder (report.md and figures), or a .md file (figures beside it)")
+    r.add_argument("--notes", default=None, help="a Markdown file appended to the report (the author's reading)")
     r.add_argument("--baseline", default=None, help="planner to compare against (default: hybrid-astar if present)")
     r.set_defaults(func=cmd_report)
 

@@ -25,10 +25,24 @@ def _fmt(v, pct=False) -> str:
     return f"{v:+.1f} %" if pct else f"{v:.3g}"
 
 
-def write_report(df: pd.DataFrame, out: str | Path, baseline: str | None = None) -> Path:
-    """Figures and ``report.md`` in ``out``; returns the report's path."""
+def write_report(
+    df: pd.DataFrame, out: str | Path, baseline: str | None = None, notes: str | Path | None = None
+) -> Path:
+    """The report and its figures; returns the report's path.
+
+    ``out`` a folder: ``out/report.md`` and the figures beside it; ``out`` a ``.md`` file:
+    the report there and its figures in the folder of the same stem beside it
+    (``docs/results.md``, ``docs/results/``). ``notes``: a Markdown file appended as is
+    (what the author reads in the figures: it is kept apart so that the rest regenerates).
+    """
     out = Path(out)
+    if out.suffix == ".md":
+        path, out = out, out.with_suffix("")
+        prefix = f"{out.name}/"
+    else:
+        path, prefix = out / "report.md", ""
     out.mkdir(parents=True, exist_ok=True)
+    notes_text = Path(notes).read_text() if notes is not None else None
     if "y1" not in df:
         df = df.assign(y1=df["road_width"] - df["y0"])
     planners = sorted(df["planner"].unique())
@@ -97,8 +111,9 @@ def write_report(df: pd.DataFrame, out: str | Path, baseline: str | None = None)
     lines += _failure_table(df, planners)
     lines += _clearance_table(df, planners)
     lines += ["## Figures", ""]
-    lines += [f"![{f.stem}]({f.name})" for f in figs]
-    path = out / "report.md"
+    lines += [f"![{f.stem}]({prefix}{f.name})" for f in figs]
+    if notes_text is not None:
+        lines += ["", notes_text.rstrip()]
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -168,13 +183,18 @@ def _headline_table(df, main, baseline) -> list[str]:
         "|---|---|---|",
     ]
     for h in headline(df, main, baseline):
-        paper = f"{h['paper']:+.1f} %" if h["relative"] else f"{h['paper']:g}"
+        if h["paper"] is None:
+            paper = "not stated"
+        else:
+            paper = f"{h['paper']:+.1f} %" if h["relative"] else f"{h['paper']:g}"
         lines.append(f"| {h['measure']} | {paper} | {_fmt(h['ours'], h['relative'])} |")
     return lines + [
         "",
         "Relative changes compare the two planners on the cases both ran: success rate, ODD size (cells "
-        "as above), mean direction switches and parking time over each planner's successes. The paper's "
-        "planning time is a mean on an i7-9750H with Gurobi; ours is the pooled mean of every planning call.",
+        "as above), mean direction switches and parking time over each planner's successes (the paper's "
+        "reading: each mean mixes in the hard cases only that planner parks), and the same two over the "
+        "cases both park (paired). The paper's planning time is a mean on an i7-9750H with Gurobi; ours is "
+        "the pooled mean of every planning call.",
         "",
     ]
 

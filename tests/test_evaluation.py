@@ -77,6 +77,23 @@ def test_summary_numbers_from_a_hand_made_table():
     assert h["success rate"] == pytest.approx(100 * (0.75 - 0.25) / 0.25)  # +200 %
     assert h["ODD size"] == pytest.approx(200.0)
     assert h["direction switches"] == pytest.approx(100 * (2.0 - 6.0) / 6.0)
+    # Paired: only reverse_3 parks with both (mirror 4 switches, 30 s; base 6, 40 s).
+    assert h["direction switches, cases both park"] == pytest.approx(100 * (4 - 6) / 6)
+    assert h["parking time, cases both park"] == pytest.approx(100 * (30 - 40) / 40)
+
+
+def test_report_to_a_markdown_file_puts_figures_beside_it_and_appends_notes(tmp_path):
+    from evaluation.report import write_report
+
+    notes = tmp_path / "notes.md"
+    notes.write_text("## Reading\n\nHand-written.\n")
+    path = write_report(hand_table(), tmp_path / "docs" / "results.md", baseline="base", notes=notes)
+    assert path == tmp_path / "docs" / "results.md"
+    text = path.read_text()
+    assert "![success_by_type](results/success_by_type.png)" in text
+    assert (tmp_path / "docs" / "results" / "success_by_type.png").is_file()
+    assert text.rstrip().endswith("Hand-written.")
+    assert "| parking time, cases both park | not stated | -25.0 % |" in text
 
 
 class _Instant(Policy):
