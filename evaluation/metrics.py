@@ -180,5 +180,6 @@ def headline(df: pd.DataFrame, planner: str, baseline: str | None) -> list[dict[
         ("mean planning time [ms]", "mean_plan_time_ms", s["plan_time_ms"]["mean"]),
     ]
     return [
-        {"measure": name, "paper": PAPER.get(key), "ours": val, "relative": key.endswith("pct")} for name, key, val in rows
+        {"measure": name, "paper": PAPER.get(key), "ours": val, "relative": key.endswith("pct")}
+        for name, key, val in rows
     ]
