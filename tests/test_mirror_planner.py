@@ -369,3 +369,14 @@ def test_mirror_paper_parks_a_fixed_reverse_and_angle_case(case_id):
     info, _ = run_episode(gym.make("MirrorPark-v0").unwrapped, policy, case_id)
     assert info["is_success"], (info["failed_criterion"], info["vehicle_state"])
     assert not any(s.detail.get("guided") for s in policy.stats)
+
+
+@pytest.mark.slow
+def test_a_parallel_slot_of_118_car_lengths_parks_by_turns_inside_it():
+    """4.52 m for a 3.82 m car: the way in is the in-slot multi-point turn (12 arcs at most),
+    reversed; with 6 arcs the guide found none and the policy gave up at once."""
+    env = gym.make("MirrorPark-v0").unwrapped
+    policy = MirrorPolicy()
+    info, _ = run_episode(env, policy, "parallel_rw4.50_sl4.52_sw2.50_th+0_y2.00")
+    assert info["is_success"], (info["failed_criterion"], info["vehicle_state"])
+    assert info["direction_switches"] >= 5

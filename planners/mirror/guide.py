@@ -49,6 +49,7 @@ class GuideConfig(StrictModel):
     max_checked: int = Field(24, ge=1)  # candidate paths checked per call
     start_gap: float = Field(0.01, gt=0, le=1)  # (or to the start's own gap, if smaller): room to leave a kerb
     in_slot_turns: bool = True  # tails that park by back-and-forth arcs inside the slot
+    in_slot_arcs: int = Field(12, ge=1, le=100)  # arcs of each such multi-point turn, at most
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,7 +110,7 @@ class GuideSearch:
             if self._clear(tail):
                 self.tails.append((v, tail, self._cost(tail)))
         if cfg.in_slot_turns:
-            self.tails += self._escape_tails()
+            self.tails += self._escape_tails(self.cfg.in_slot_arcs)
         self._road_tails: list[tuple[np.ndarray, np.ndarray, float]] | None = None  # built when first needed
 
     def road_tails(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
