@@ -7,6 +7,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from mirrorpark_env.criteria import iso_pose_slack
+from mirrorpark_env.vehicle import VehicleParams
+
 from .figures import (
     SLOT,
     _per_type_lines,
@@ -17,6 +20,8 @@ from .figures import (
     fig_success_by_type,
 )
 from .metrics import TYPES, headline, odd_cells, odd_size, summary
+
+SPARE = 0.01  # [m] room to spare that the report's "to spare" columns ask of a slot
 
 
 def _fmt(v, pct=False) -> str:
@@ -156,11 +161,17 @@ def _success_tables(df, planners) -> list[str]:
     lines = [
         "## Success per parking type",
         "",
-        "| planner | type | cases | success | feasible cases | over feasible | y0 >= 1.6 m, feasible |",
-        "|---|---|---|---|---|---|---|",
+        "| planner | type | cases | success | feasible cases | over feasible | y0 >= 1.6 m, feasible "
+        "| over feasible, >= 1 cm to spare | y0 >= 1.6 m, >= 1 cm to spare |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     ok = df["success"].fillna(False).astype(bool)
     feasible = df["feasible"].fillna(True).astype(bool) if "feasible" in df else pd.Series(True, index=df.index)
+    slack = pd.Series(
+        iso_pose_slack(df["parking_type"], df["slot_length"], df["slot_width"], VehicleParams.table_ii()),
+        index=df.index,
+    )
+    roomy = feasible & (slack >= SPARE - 1e-9)
     for p in planners:
         for t in TYPES:
             m = (df["planner"] == p) & (df["parking_type"] == t)
@@ -168,11 +179,20 @@ def _success_tables(df, planners) -> list[str]:
                 continue
             f = m & feasible
             far = f & (df["y0"] >= 1.6 - 1e-9)
+            r, r_far = m & roomy, m & roomy & (df["y0"] >= 1.6 - 1e-9)
+            cells = [ok[x].mean() if x.any() else None for x in (m, f, far, r, r_far)]
             lines.append(
-                f"| {p} | {t} | {int(m.sum())} | {_pct(ok[m].mean())} | {int(f.sum())}"
-                f" | {_pct(ok[f].mean() if f.any() else None)} | {_pct(ok[far].mean() if far.any() else None)} |"
+                f"| {p} | {t} | {int(m.sum())} | {_pct(cells[0])} | {int(f.sum())} | {_pct(cells[1])}"
+                f" | {_pct(cells[2])} | {_pct(cells[3])} | {_pct(cells[4])} |"
             )
-    return lines + ["", "The paper reports success around 100 % from y0 >= 1.6 m.", ""]
+    return lines + [
+        "",
+        "The paper reports success around 100 % from y0 >= 1.6 m. To spare: how far every ISO margin of the "
+        "slot's best pose can exceed its limit at once (`criteria.iso_pose_slack`); a feasible slot with "
+        "none to spare (reverse and angle SW = car width + 0.2 m) holds exactly one compliant pose, centred "
+        "and aligned to the millimetre.",
+        "",
+    ]
 
 
 def _headline_table(df, main, baseline) -> list[str]:

@@ -173,3 +173,21 @@ def iso_pose_exists(parking_type, slot_length, slot_width, vehicle: VehicleParam
     parallel = (sl - L > tol) & (sw - W > tol)
     perpendicular = (sw - W >= 2 * m - tol) & (sl - L >= m - tol)
     return np.where(ptype == ParkingType.PARALLEL.value, parallel, perpendicular)
+
+
+def iso_pose_slack(parking_type, slot_length, slot_width, vehicle: VehicleParams, cfg: CriteriaConfig | None = None):
+    """How much room to spare the best pose in a slot has [m], for arrays of slot sizes:
+    the largest amount by which every ISO margin can exceed its limit at once (negative:
+    no ISO pose; zero: exactly one, which no real car hits).
+
+    From the same best poses as ``iso_pose_exists``: parallel min((SL - L) / 2, SW - W)
+    (front and rear margins split the spare length; the kerb side may be 0, so the entrance
+    margin takes all the spare width); reverse and angle min((SW - W) / 2 - m, SL - L - m).
+    """
+    cfg = cfg or CriteriaConfig()
+    ptype = np.asarray(parking_type)
+    sl, sw = np.asarray(slot_length, float), np.asarray(slot_width, float)
+    L, W, m = vehicle.length, vehicle.width, cfg.min_margin_perpendicular
+    parallel = np.minimum((sl - L) / 2, sw - W)
+    perpendicular = np.minimum((sw - W) / 2 - m, sl - L - m)
+    return np.where(ptype == ParkingType.PARALLEL.value, parallel, perpendicular)

@@ -191,3 +191,26 @@ def test_an_iso_pose_exists_just_above_the_limit_and_not_below(ptype, sl, sw, ex
                 p = np.array([x, y]) + da * u + dn * n
                 best |= crit.verdict(p[0], p[1], th + dth, 0.0, 0.0, False).success
     assert best is exists
+
+
+@pytest.mark.parametrize(
+    "ptype, sl, sw, slack",
+    [
+        ("parallel", 4.02, 2.5, 0.10),  # (4.02 - 3.82) / 2 front and rear; 0.83 m of width
+        ("parallel", 5.0, 1.70, 0.03),  # the spare width decides
+        ("parallel", 3.82, 2.5, 0.0),
+        ("reverse", 4.82, 1.87, 0.0),  # exactly one pose: centred and aligned
+        ("reverse", 4.82, 1.97, 0.05),  # (1.97 - 1.67) / 2 - 0.1
+        ("angle", 3.95, 2.5, 0.03),  # the entrance margin decides: 3.95 - 3.82 - 0.1
+        ("reverse", 4.82, 1.77, -0.05),
+    ],
+)
+def test_room_to_spare_in_a_slot_by_hand(ptype, sl, sw, slack):
+    from mirrorpark_env import VehicleParams
+    from mirrorpark_env.criteria import iso_pose_exists, iso_pose_slack
+
+    P = VehicleParams.table_ii()
+    got = float(iso_pose_slack(ptype, sl, sw, P))
+    assert got == pytest.approx(slack, abs=1e-9)
+    if abs(slack) > 1e-6:
+        assert bool(iso_pose_exists(ptype, sl, sw, P)) is (slack > 0)
