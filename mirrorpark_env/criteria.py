@@ -165,14 +165,9 @@ def iso_pose_exists(parking_type, slot_length, slot_width, vehicle: VehicleParam
     - reverse, angle: four side margins >= m and the entrance margin >= m (m = 0.1 m):
       SW >= W + 2 m and SL >= L + m.
     """
-    cfg = cfg or CriteriaConfig()
-    ptype = np.asarray(parking_type)
-    sl, sw = np.asarray(slot_length, float), np.asarray(slot_width, float)
-    L, W, m = vehicle.length, vehicle.width, cfg.min_margin_perpendicular
-    tol = 1e-9
-    parallel = (sl - L > tol) & (sw - W > tol)
-    perpendicular = (sw - W >= 2 * m - tol) & (sl - L >= m - tol)
-    return np.where(ptype == ParkingType.PARALLEL.value, parallel, perpendicular)
+    slack = iso_pose_slack(parking_type, slot_length, slot_width, vehicle, cfg)
+    tol = 1e-9  # parallel margins must be > 0, the others >= m
+    return np.where(np.asarray(parking_type) == ParkingType.PARALLEL.value, slack > tol, slack >= -tol)
 
 
 def iso_pose_slack(parking_type, slot_length, slot_width, vehicle: VehicleParams, cfg: CriteriaConfig | None = None):

@@ -289,4 +289,4 @@ class ReedsShepp:
         Sampled from the path's segments (``reeds_shepp``): ompl's binding would solve the
         whole problem again for every pose. ompl's length picks the word.
         """
-        return sample(start, goal, self.radius, step, self.distance(start, goal))
+        return self.place(start, goal, self.path(start, goal), step)
