@@ -172,14 +172,15 @@ def _success_tables(df, planners) -> list[str]:
         index=df.index,
     )
     roomy = feasible & (slack >= SPARE - 1e-9)
+    far_out = df["y0"] >= 1.6 - 1e-9
     for p in planners:
         for t in TYPES:
             m = (df["planner"] == p) & (df["parking_type"] == t)
             if not m.any():
                 continue
             f = m & feasible
-            far = f & (df["y0"] >= 1.6 - 1e-9)
-            r, r_far = m & roomy, m & roomy & (df["y0"] >= 1.6 - 1e-9)
+            far = f & far_out
+            r, r_far = m & roomy, m & roomy & far_out
             cells = [ok[x].mean() if x.any() else None for x in (m, f, far, r, r_far)]
             lines.append(
                 f"| {p} | {t} | {int(m.sum())} | {_pct(cells[0])} | {int(f.sum())} | {_pct(cells[1])}"

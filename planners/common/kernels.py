@@ -1,7 +1,7 @@
 """Compiled inner loops of the planners' collision checks (numba).
 
 A profile of a hybrid A* call that spends its budget (10,000 expansions in a parallel slot
-of 1.2 car lengths) put a third of its time in ``FootprintChecker.penetration`` on small
+of 1.13 car lengths) put a third of its time in ``FootprintChecker.penetration`` on small
 batches (80 poses per expansion): numpy's per-call overhead, not arithmetic. These
 kernels compute the same separating-axis values pose by pose, with the same operations in
 the same order, so that planners get the same gaps as from the numpy checker (a test

@@ -149,7 +149,7 @@ class HybridAStar:
         if abs(wrap_angle(th - self.criteria.target_heading)) > self.goal_heading:
             return False  # the verdict's own heading error, without its margins
         v = self.criteria.verdict(x, y, th, 0.0, 0.0, False)
-        if not v.inside_slot or abs(v.heading_error) > self.goal_heading:
+        if not v.inside_slot:
             return False
         need = self.criteria.min_margin + self.cfg.goal_margin
         return min(v.margins.values()) >= need
