@@ -20,7 +20,7 @@ from mirrorpark_env.geometry import FootprintChecker
 
 
 @njit(cache=True, nogil=True)
-def _gaps(poses, front, rear, hw, normals, pmin, pmax, verts):  # pragma: no cover - compiled
+def _gaps(poses, front, rear, hw, normals, pmin, pmax, verts, all_axes=False):  # pragma: no cover - compiled
     """Gaps (P,) of the footprint at rear-axle poses (P, 3) to obstacles given as (K, V, 2) arrays.
 
     Mirrors ``FootprintChecker.penetration(...).max(axis=1)`` negated, including its batch
@@ -59,6 +59,7 @@ def _gaps(poses, front, rear, hw, normals, pmin, pmax, verts):  # pragma: no cov
             ov[p, k] = m
             if m > 0:
                 overlap = True
+    overlap = overlap or all_axes
     out = np.empty(n)
     for p in range(n):
         c = cs[p, 0]
@@ -110,7 +111,12 @@ class FastGaps:
             np.ascontiguousarray(obs.vertices, dtype=float),
         )
 
-    def __call__(self, poses: np.ndarray) -> np.ndarray:
+    def __call__(self, poses: np.ndarray, all_axes: bool = False) -> np.ndarray:
+        """``all_axes``: test the footprint's own two axes for every pair, not only once some
+        pair of the batch needs them: the largest separation over all six axes, a lower
+        bound on the distance that does not depend on the other poses of the batch (near an
+        obstacle edge's extension line the obstacle's axes alone can report millimetres
+        where the car is half a metre away)."""
         if self.empty:
             return np.full(len(poses), np.inf)
-        return _gaps(np.ascontiguousarray(poses, dtype=float), *self.args)
+        return _gaps(np.ascontiguousarray(poses, dtype=float), *self.args, all_axes)

@@ -3,8 +3,10 @@ baseline and the guide-only ablation.
 
 A path is planned when the episode starts and again, from where the car stands, when
 tracking has drifted beyond the tracker's tolerance or the path has been driven to its
-end without the ISO check passing. Before a replan the car is brought to a stand. A
-failed plan stops the car for good and says why in the last ``PlanStats``; it never raises.
+end without the ISO check passing, or when the next command would leave the car unable to
+stop clear of an obstacle (``safety.StoppingCheck``). Before a replan the car is brought to
+a stand. A failed plan stops the car for good and says why in the last ``PlanStats``; it
+never raises.
 """
 
 from __future__ import annotations
@@ -19,14 +21,19 @@ from mirrorpark_env.vehicle import VehicleState, to_action
 
 from ..base import PlanStats, Policy
 from .path import Path
+from .safety import StoppingCheck
 from .tracker import PathTracker, TrackerConfig, hold_command
 
 
 class TrackingPolicy(Policy):
     """Subclasses say how to ``prepare`` for a scene and how to ``find_path`` from a pose."""
 
-    def __init__(self, tracker: TrackerConfig | None = None, max_plans: int = 6) -> None:
+    def __init__(
+        self, tracker: TrackerConfig | None = None, max_plans: int = 6, stopping_check: bool = True
+    ) -> None:
         super().__init__()
+        self.stopping_check = stopping_check  # brake while the car can still stop clear (common.safety)
+        self._stopping: StoppingCheck | None = None
         self.tracker_config = tracker or TrackerConfig()
         self.max_plans = max_plans
         self.params = None
@@ -42,6 +49,8 @@ class TrackingPolicy(Policy):
     def reset(self, geometry: ScenarioGeometry) -> None:
         self.prepare(geometry)
         self.params = geometry.vehicle
+        self._stopping = StoppingCheck(geometry) if self.stopping_check else None
+        self.safety_stops = 0
         self.stats = []
         self.paths: list[Path] = []
         self.tracker: PathTracker | None = None
@@ -64,6 +73,12 @@ class TrackingPolicy(Policy):
             if tr is None:
                 return self._brake(s)
         a, d = tr.command(s)
+        if self._stopping is not None and not self._stopping.safe(s, tr):
+            # Tracking has drifted toward an obstacle: stop while the car can, then replan.
+            self.tracker = None
+            self._replan_when_stopped = True
+            self.safety_stops += 1
+            return self._brake(s)
         return to_action(self.params, a, d)
 
     def _plan(self, s: VehicleState) -> None:
