@@ -20,7 +20,7 @@ import numpy as np
 from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import TruthModel, VehicleState
 
-from .clearance import START_SLACK, gaps
+from .clearance import START_SLACK, gaps, required_gap
 from .tracker import PathTracker, hold_accel
 
 MIN_GAP = 0.01  # [m] the closest a footprint may come on the way to a stand
@@ -28,15 +28,19 @@ STRETCH = 1.6  # farthest a footprint point moves per metre of rear-axle travel 
 
 
 class StoppingCheck:
-    """``safe(state, tracker)``: does tracking stay clear over the next ``horizon`` seconds?"""
+    """``safe(state, tracker)``: does tracking stay clear until the car next stands (at most
+    ``horizon`` seconds ahead)?"""
 
-    def __init__(self, geometry: ScenarioGeometry, dt: float = 0.1, min_gap: float = MIN_GAP, horizon: float = 1.0):
+    def __init__(self, geometry: ScenarioGeometry, dt: float = 0.1, min_gap: float = MIN_GAP, horizon: float = 4.0):
         self.g = geometry
         self.p = geometry.vehicle
         self.model = TruthModel(self.p, dt, 0.01)
         self.dt = dt
         self.min_gap = min_gap
-        self.steps = max(1, round(horizon / dt))
+        self.max_steps = max(1, round(horizon / dt))
+        st = geometry.start
+        self.start_xy = (st.x, st.y)
+        self.start_gap = float(gaps(geometry.checker, np.array([[st.x, st.y, st.theta]]), all_axes=True)[0])
 
     def safe(self, s: VehicleState, tracker: PathTracker) -> bool:
         """Rolls a copy of ``tracker`` in closed loop on the truth model from ``s``; False if a
@@ -46,22 +50,27 @@ class StoppingCheck:
         here = float(gaps(self.g.checker, np.array([[s.x, s.y, s.theta]]), all_axes=True)[0])
         need = min(self.min_gap, max(here, 0.0) - START_SLACK)
         # Where nothing is near, no rollout: no point of the car can move farther than this.
-        reach = (abs(s.v) + p.a_max * self.steps * self.dt) * self.steps * self.dt
+        t = self.max_steps * self.dt
+        reach = (abs(s.v) + p.a_max * t) * t
         if here - STRETCH * reach > need:
             return True
         tr = copy.copy(tracker)
         x, y, th, v, a, d = s.x, s.y, s.theta, s.v, s.a, s.delta
         poses = []
-        for _ in range(self.steps):
+        moved = abs(v) >= 0.01
+        for _ in range(self.max_steps):
             if tr.drifted:  # the policy will brake here, holding the steering: so does the rollout
-                if abs(v) < 0.01:
-                    break
                 a_cmd, d_cmd = hold_accel(p, v, a), d
             else:
                 a_cmd, d_cmd = tr.command_at(x, y, th, v, a, d)
             rows = self.model.step_rows((x, y, th, v, a, d), a_cmd, d_cmd)
             poses += [r[:3] for r in rows]
             x, y, th, v, a, d = rows[-1][:6]
-            if tr.done:
-                break
-        return bool(gaps(self.g.checker, np.array(poses), all_axes=True).min() >= need - 1e-12)
+            if tr.done or (moved and abs(v) < 0.01):
+                break  # standing: at the end of the path, at a cusp, or braked after a drift
+            moved = moved or abs(v) >= 0.01
+        poses = np.array(poses)
+        # Within START_RELIEF of a start closer than min_gap, only the start's own gap (the
+        # planners' rule, common.clearance): the car may leave a tight start.
+        need = np.minimum(need, required_gap(poses, self.start_xy, self.start_gap, self.min_gap))
+        return bool((gaps(self.g.checker, poses, all_axes=True) >= need - 1e-12).all())

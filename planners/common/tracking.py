@@ -28,9 +28,7 @@ from .tracker import PathTracker, TrackerConfig, hold_command
 class TrackingPolicy(Policy):
     """Subclasses say how to ``prepare`` for a scene and how to ``find_path`` from a pose."""
 
-    def __init__(
-        self, tracker: TrackerConfig | None = None, max_plans: int = 6, stopping_check: bool = True
-    ) -> None:
+    def __init__(self, tracker: TrackerConfig | None = None, max_plans: int = 6, stopping_check: bool = True) -> None:
         super().__init__()
         self.stopping_check = stopping_check  # brake while the car can still stop clear (common.safety)
         self._stopping: StoppingCheck | None = None
