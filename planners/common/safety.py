@@ -4,9 +4,11 @@ A tracker may drift from its path by up to its tolerances (15 cm, 5 deg) before 
 policy replans, and 5 deg of heading swing the front of the car by 26 cm: more than the
 clearance the path was planned with (hybrid A* on the full grid touched the road's far
 edge twice this way, by 0.2 mm at 0.04 m/s). So at each step the tracker is rolled out in
-closed loop on the truth model for a second ahead; if a footprint on the way comes closer
-to an obstacle than ``min_gap`` (or, at a start already closer, than the start's own
-gap), the policy brakes now and replans once it stands. Where the car is far from
+closed loop on the truth model until the car next stands (at most a few seconds); if a
+footprint on the way comes closer to an obstacle than ``min_gap``, the policy brakes now
+and replans once it stands. Where the car is already closer than ``min_gap`` (a tight
+start, or near its start), the rollout must keep half of that gap: tracking may use some
+of what the planner kept, never all of it, so the check cannot pin the car where it stands. Where the car is far from
 everything the rollout is skipped: no point of it can move farther than a bound on its
 travel. Gaps here test all six separating axes for every pose (``kernels.FastGaps``).
 """
@@ -20,7 +22,7 @@ import numpy as np
 from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import TruthModel, VehicleState
 
-from .clearance import START_SLACK, gaps, required_gap
+from .clearance import gaps, required_gap
 from .tracker import PathTracker, hold_accel
 
 MIN_GAP = 0.01  # [m] the closest a footprint may come on the way to a stand
@@ -44,11 +46,11 @@ class StoppingCheck:
 
     def safe(self, s: VehicleState, tracker: PathTracker) -> bool:
         """Rolls a copy of ``tracker`` in closed loop on the truth model from ``s``; False if a
-        footprint on the way comes closer to an obstacle than ``min_gap`` (or, from a start
-        already closer, than the start's own gap less ``START_SLACK``)."""
+        footprint on the way comes closer to an obstacle than ``min_gap`` (or, from a pose
+        or within ``START_RELIEF`` of a start already closer, than half that gap)."""
         p = self.p
         here = float(gaps(self.g.checker, np.array([[s.x, s.y, s.theta]]), all_axes=True)[0])
-        need = min(self.min_gap, max(here, 0.0) - START_SLACK)
+        need = min(self.min_gap, 0.5 * max(here, 0.0))
         # Where nothing is near, no rollout: no point of the car can move farther than this.
         t = self.max_steps * self.dt
         reach = (abs(s.v) + p.a_max * t) * t
@@ -70,7 +72,8 @@ class StoppingCheck:
                 break  # standing: at the end of the path, at a cusp, or braked after a drift
             moved = moved or abs(v) >= 0.01
         poses = np.array(poses)
-        # Within START_RELIEF of a start closer than min_gap, only the start's own gap (the
-        # planners' rule, common.clearance): the car may leave a tight start.
-        need = np.minimum(need, required_gap(poses, self.start_xy, self.start_gap, self.min_gap))
+        # Within START_RELIEF of a start closer than min_gap, half the start's gap (the planners
+        # keep that gap less START_SLACK there; common.clearance): the car may leave a tight start.
+        half = 0.5 * max(self.start_gap, 0.0)
+        need = np.minimum(need, required_gap(poses, self.start_xy, self.start_gap, self.min_gap, slack=half))
         return bool((gaps(self.g.checker, poses, all_axes=True) >= need - 1e-12).all())
