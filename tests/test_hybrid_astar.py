@@ -178,3 +178,36 @@ def test_reeds_shepp_path_placed_twice_equals_sampling_twice():
         p = rs.path(a, b)
         for step in (0.05, 0.2):
             np.testing.assert_array_equal(rs.place(a, b, p, step), rs.sample(a, b, step))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "case_id",
+    [
+        # The car reaches the last cusp 5 deg off heading (inside the tracker's tolerance) and,
+        # braking, would touch the road's far edge.
+        "reverse_rw5.00_sl4.82_sw2.07_th-70_y3.50",
+        # A start 2 cm from the road's edge: a few centimetres of tracking error would use it up.
+        "angle_rw3.50_sl4.82_sw1.97_th-30_y2.30",
+    ],
+)
+def test_the_stopping_check_brakes_before_tracking_error_meets_an_obstacle(case_id):
+    env = gym.make("MirrorPark-v0").unwrapped
+    unchecked = HybridAStarPolicy(stopping_check=False)
+    info, _ = run_episode(env, unchecked, case_id)
+    assert info["collision"]  # what the check is for: without it these cases touch
+    policy = HybridAStarPolicy()
+    info, _ = run_episode(env, policy, case_id)
+    assert info["is_success"] and not info["collision"] and info["min_clearance"] > 0
+    assert policy.safety_stops >= 1
+
+
+@pytest.mark.slow
+def test_the_stopping_check_lets_the_car_leave_a_tight_start():
+    # The start is 7.6 mm from a neighbour; tracking away from it costs a few tenths of a
+    # millimetre of that gap, which the check allows (half the start's gap), so the car leaves.
+    env = gym.make("MirrorPark-v0").unwrapped
+    policy = HybridAStarPolicy()
+    info, _ = run_episode(env, policy, "reverse_rw6.00_sl4.82_sw2.57_th+40_y1.10")
+    assert info["is_success"] and not info["collision"]
+    assert policy.safety_stops == 0

@@ -16,9 +16,13 @@ class HybridAStarPolicy(TrackingPolicy):
     name = "hybrid-astar"
 
     def __init__(
-        self, config: HybridAStarConfig | None = None, tracker: TrackerConfig | None = None, max_plans: int = 6
+        self,
+        config: HybridAStarConfig | None = None,
+        tracker: TrackerConfig | None = None,
+        max_plans: int = 6,
+        stopping_check: bool = True,
     ) -> None:
-        super().__init__(tracker, max_plans)
+        super().__init__(tracker, max_plans, stopping_check)
         self.config = config or HybridAStarConfig()
         self.planner: HybridAStar | None = None
 
