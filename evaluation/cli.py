@@ -309,7 +309,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--dagger-rounds",
         type=_positive_int,
         default=None,
-        help="with --demos: after cloning, this many DAgger rounds (the mirror planner labels the learner's states)",
+        help="DAgger rounds with a planner as the expert riding along (dagger in configs/rl.yaml; "
+        "with --demos, after cloning them; without, the first round is the expert's own driving)",
     )
     t.set_defaults(func=cmd_train_rl)
     return ap
@@ -335,8 +336,6 @@ def _rl_config(args: argparse.Namespace):
 
 
 def cmd_train_rl(args: argparse.Namespace) -> int:
-    if args.dagger_rounds and not args.demos:
-        raise ValueError("--dagger-rounds: needs --demos (DAgger starts from the cloned policy)")
     if args.finetune and (not args.demos or args.dagger_rounds):
         raise ValueError("--finetune: needs --demos and no --dagger-rounds (it starts from the cloned policy)")
     try:
@@ -362,7 +361,7 @@ def cmd_train_rl(args: argparse.Namespace) -> int:
         summary = train(cfg, out, resume=True)
     elif args.demos and args.finetune:
         summary = finetune(cfg, args.demos, out)
-    elif args.demos and args.dagger_rounds:
+    elif args.dagger_rounds:
         summary = dagger(cfg, args.demos, out, rounds=args.dagger_rounds)
     elif args.demos:
         summary = behaviour_clone(cfg, args.demos, out)

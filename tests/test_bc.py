@@ -35,30 +35,87 @@ def test_a_short_bc_run_lowers_the_action_error_on_its_dataset(tmp_path, require
 
 
 @pytest.mark.rl
-def test_a_dagger_round_labels_the_states_the_learner_visits(tmp_path, require_module):
+def test_a_dagger_round_labels_the_states_the_learner_visits(require_module):
     """The round's observations are the learner's own rollout, and each label is what the
-    planner, asked afresh at that state, would command."""
+    expert policy, riding along on exactly those states, answers."""
     require_module("stable_baselines3")
     import gymnasium as gym
 
-    from planners.rl.dagger import PlannerExpert, dagger_round
+    from planners.rl.dagger import ShadowExpert, rollouts
 
     class Learner:  # a fixed, simple learner: creep forward, wheels straight
         def predict(self, obs, deterministic=True):
             return np.array([0.3, 0.0], dtype=np.float32), None
 
-    env = gym.make("MirrorPark-v0")
     sc = Scenario.from_case_id(CASES[0])
-    obs, labels = dagger_round(Learner(), env, PlannerExpert(), [sc], max_steps=6)
-    assert len(labels) == 6 and all(len(v) == 6 for v in obs.values())
-    # Replay the learner: the same states, and a fresh expert gives the same labels there.
+    obs, labels, counts = rollouts(Learner(), ShadowExpert("guide-only", 20), [sc], beta=0.0, max_steps=12, seed=0)
+    assert len(labels) == 12 and all(len(v) == 12 for v in obs.values()) and counts["episodes"] == 1
+    # Replay the learner: the same states, and an expert riding along gives the same labels.
+    env = gym.make("MirrorPark-v0")
     o, info = env.reset(options={"scenario": sc})
-    expert = PlannerExpert()
+    expert = ShadowExpert("guide-only", 20)
     expert.reset(info["geometry"])
-    for t in range(6):
+    for t in range(12):
         assert all(np.array_equal(obs[k][t], o[k]) for k in o)
-        assert np.allclose(labels[t], expert.label(info["vehicle_state"]))
+        assert np.array_equal(labels[t], expert.label(o, info))
         o, *_, info = env.step(np.array([0.3, 0.0], dtype=np.float32))
+    # The learner's creep is not what the expert does: the labels say so (it steers first).
+    assert np.abs(labels - np.array([0.3, 0.0])).max() > 0.1
+
+
+@pytest.mark.rl
+def test_with_beta_one_a_dagger_round_is_the_experts_own_episode(require_module):
+    require_module("stable_baselines3")
+    import gymnasium as gym
+
+    from evaluation.registry import make_policy
+    from planners.base import run_episode
+    from planners.rl.dagger import ShadowExpert, rollouts
+
+    sc = Scenario.from_case_id(CASES[0])
+    obs, labels, counts = rollouts(None, ShadowExpert("guide-only", 6), [sc], beta=1.0, max_steps=1800, seed=0)
+    record: list = []
+    info, steps = run_episode(gym.make("MirrorPark-v0"), make_policy("guide-only"), sc, record=record)
+    assert info["is_success"] and counts["parked"] == 1 and len(labels) == steps
+    assert np.array_equal(labels, np.array([r[0] for r in record[1:]], np.float32))
+
+
+@pytest.mark.rl
+def test_dagger_training_cases_leave_the_evaluation_samples_out():
+    from mirrorpark_env.grid import Grid
+    from planners.rl.dagger import training_cases
+
+    grid = Grid.from_config()
+    cases = training_cases(grid, 300, seed=1, types=("parallel", "reverse", "angle"))
+    held_out = {grid.scenario(int(i)).case_id for s in ("smoke", "standard") for i in grid.sample_indices(s)}
+    assert len(cases) == 300 and [c.parking_type.value for c in cases].count("angle") == 100
+    assert not held_out & {c.case_id for c in cases}
+    assert training_cases(grid, 300, seed=1, types=("parallel", "reverse", "angle")) == cases
+
+
+@pytest.mark.rl
+def test_slot_frame_features_are_the_pose_seen_from_the_target(require_module):
+    require_module("stable_baselines3")
+    import math
+
+    import torch
+    from gymnasium import spaces
+
+    from planners.rl.features import SlotFrameFeatures
+
+    box = spaces.Box(-np.inf, np.inf, (13,), np.float32)
+    f = SlotFrameFeatures(spaces.Dict({"observation": box, "desired_goal": spaces.Box(-np.inf, np.inf, (4,))}))
+    th = math.radians(60)  # the target at (2, 3) m, heading 60 deg; the car 1 m behind it, 10 deg to the left
+    o = torch.zeros(1, 13)
+    x0, y0 = (2 - math.cos(th)) / 10, (3 - math.sin(th)) / 10
+    o[0, :4] = torch.tensor([x0, y0, math.cos(th + 0.1745), math.sin(th + 0.1745)])
+    o[0, 4:] = torch.arange(9) + 1.0
+    g = torch.tensor([[0.2, 0.3, math.cos(th), math.sin(th)]])
+    x = f({"observation": o, "desired_goal": g})[0]
+    assert x[:2].tolist() == pytest.approx([-1 / 5, 0.0], abs=1e-6)
+    assert x[2:4].tolist() == pytest.approx([math.tanh(-1 / 0.3), 0.0], abs=1e-6)
+    assert x[4:6].tolist() == pytest.approx([math.cos(0.1745), math.sin(0.1745)], abs=1e-6)
+    assert x[6:].tolist() == pytest.approx(list(range(1, 10)))
 
 
 @pytest.mark.rl

@@ -125,7 +125,7 @@ def save_trained(
     summary = {
         "algo": cfg.algo,
         "method": method,
-        "demos": str(dataset_path(demos)),
+        "demos": str(dataset_path(demos)) if demos is not None else None,
         "episodes": episodes,
         "samples": int(samples),
         **extra,

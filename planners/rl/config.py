@@ -46,6 +46,18 @@ class FinetuneConfig(StrictModel):
     q_filter: bool = True  # BC only where the critic rates the expert's action above the actor's
 
 
+class DaggerConfig(StrictModel):
+    """DAgger with a planner as the expert (``train-rl --dagger-rounds``, ``dagger.py``)."""
+
+    expert: str = "guide-only"  # a named planner that tracks a path in feedback (guide-only, hybrid-astar)
+    cases_per_round: int = Field(600, ge=1)  # training cases per round, split evenly over the types
+    beta0: float = Field(1.0, ge=0, le=1)  # chance that the expert's action is the one executed, round 1 ...
+    beta_decay: float = Field(0.5, ge=0, le=1)  # ... times this each further round
+    max_steps: int = Field(900, ge=1, le=1800)  # steps per rollout (0.1 s each)
+    expert_max_plans: int = Field(20, ge=1)  # plans the expert may make per rollout (it replans after drifts)
+    workers: int = Field(0, ge=0)  # rollout processes (0: all cores)
+
+
 class RLConfig(StrictModel):
     algo: Literal["sac", "tqc"] = "sac"
     total_steps: int = Field(200_000, ge=1)
@@ -61,11 +73,15 @@ class RLConfig(StrictModel):
     train_freq: int = Field(1, ge=1)
     gradient_steps: int = Field(1, ge=1)
     net_arch: list[int] = Field(default_factory=lambda: [256, 256], min_length=1)
+    # flat: the observation as the env gives it; slot_frame: the pose relative to the target,
+    # in its frame, at scene and slot scale (features.SlotFrameFeatures)
+    features: Literal["flat", "slot_frame"] = "flat"
     her: HerConfig = HerConfig()
     curriculum: CurriculumConfig = CurriculumConfig()
     eval: EvalConfig = EvalConfig()
     bc: BCConfig = BCConfig()
     finetune: FinetuneConfig = FinetuneConfig()
+    dagger: DaggerConfig = DaggerConfig()
     checkpoint_every_steps: int = Field(50_000, ge=1)
     parking_types: list[ParkingTypeName] = Field(default_factory=lambda: list(PARKING_TYPES), min_length=1)
     device: str = "auto"

@@ -1,106 +1,203 @@
-"""DAgger: the learner drives, the planner says what it would have done there.
+"""DAgger: the learner drives, a planner riding along says what it would do there.
 
-Each round rolls the current learner (the cloned actor) out on training cases of the
-grid; at every state it visits, the expert (a fresh plan of the mirror planner from that
-state: its first command) labels the action. The labelled states join the dataset, and
-the actor is fitted again on all of it (Ross et al., 2011). Training cases are drawn
-from the grid with a seed per round, apart from the smoke and standard samples' seed.
+The expert is a named planner policy that tracks its path in feedback (``guide-only`` by
+default, or ``hybrid-astar``), run in the shadow of the learner: each step it sees the
+state the learner's actions led to, as it would see its own, and answers with its
+action: the tracker's correction back to its path, or a brake and a new plan from where
+the car stands once it has drifted too far. So every label is what the expert does from
+that state, with the expert's own memory of the manoeuvre it is in, never a fresh start
+(an earlier version labelled with the first command of a fresh plan, which at a moving
+state is "stop": the learner learned to hesitate).
+
+Round ``r`` (from 1) executes the expert's action with probability
+``beta0 * beta_decay ** (r - 1)`` and the learner's otherwise (Ross et al., 2011); with
+``beta0 = 1`` the first round is plain demonstration. Each round's states and labels join
+the data, and the actor is fitted again on all of it (``bc.fit_actor``). Rollouts end
+when the episode does, or when the expert gives up (it has no label to give then).
+Training cases come from the grid with a seed per round, and cases of the smoke and
+standard samples are left out, so that those samples stay unseen.
 """
 
 from __future__ import annotations
 
+import multiprocessing as mp
+import os
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from mirrorpark_env.scenario import Scenario, ScenarioGeometry
-from mirrorpark_env.vehicle import VehicleState, to_action
+from mirrorpark_env.scenario import ParkingType, Scenario
 
 from .bc import action_error, fit_actor, load_demos, save_trained
 from .config import RLConfig
 
 
-class PlannerExpert:
-    """The mirror planner asked at any state: the first command of a plan from there
-    (a hold-and-brake command where it finds none)."""
+class ShadowExpert:
+    """A named planner policy asked for its action at the states the learner visits."""
 
-    def __init__(self) -> None:
+    def __init__(self, planner: str, max_plans: int) -> None:
+        from evaluation.registry import make_policy
+        from planners.common.tracking import TrackingPolicy
+
+        self.policy = make_policy(planner)
+        inner = getattr(self.policy, "inner", self.policy)  # under the slot-frame wrapper
+        if not isinstance(inner, TrackingPolicy):
+            raise ValueError(
+                f"dagger.expert: {planner!r} does not track a path in feedback; use guide-only or hybrid-astar"
+            )
+        inner.max_plans = max_plans
         self.calls = 0
 
-    def reset(self, geometry: ScenarioGeometry) -> None:
-        from planners.mirror.planner import MirrorPlanner
+    def reset(self, geometry) -> None:
+        self.policy.reset(geometry)
 
-        self.planner = MirrorPlanner(geometry)
-        self.planner.prepare()
-        self.params = geometry.vehicle
-
-    def label(self, s: VehicleState) -> np.ndarray:
-        from planners.common.tracker import hold_accel
-
+    def label(self, obs: dict, info: dict) -> np.ndarray:
         self.calls += 1
-        plan = self.planner.plan(s)
-        if plan is None:
-            return to_action(self.params, hold_accel(self.params, s.v, s.a), s.delta)
-        a, d = plan.commands[0]
-        return to_action(self.params, float(a), float(d))
+        return np.asarray(self.policy.act(obs, info), np.float32)
+
+    @property
+    def gave_up(self) -> bool:
+        return self.policy.gave_up
 
 
-def dagger_round(model, env, expert: PlannerExpert, cases: list[Scenario], max_steps: int):
-    """The learner's visited observations on ``cases`` with the expert's actions there."""
+def rollouts(
+    model, expert: ShadowExpert, cases: list[Scenario], beta: float, max_steps: int, seed: int
+) -> tuple[dict[str, np.ndarray], np.ndarray, dict[str, int]]:
+    """States visited on ``cases`` under the mixed policy, with the expert's labels."""
+    import gymnasium as gym
+
+    import mirrorpark_env  # noqa: F401
+
+    env = gym.make("MirrorPark-v0")
+    rng = np.random.default_rng(seed)
     obs_out: dict[str, list[np.ndarray]] = {}
-    labels = []
+    labels: list[np.ndarray] = []
+    counts = {"episodes": 0, "parked": 0, "collided": 0, "expert_gave_up": 0}
     for sc in cases:
         obs, info = env.reset(options={"scenario": sc})
         expert.reset(info["geometry"])
+        counts["episodes"] += 1
         for _ in range(max_steps):
+            label = expert.label(obs, info)
+            if expert.gave_up:
+                counts["expert_gave_up"] += 1
+                break
             for k, v in obs.items():
                 obs_out.setdefault(k, []).append(np.asarray(v, np.float32))
-            labels.append(expert.label(info["vehicle_state"]))
-            action, _ = model.predict(obs, deterministic=True)
+            labels.append(label)
+            if beta >= 1.0 or (beta > 0.0 and rng.random() < beta):
+                action = label
+            else:
+                action, _ = model.predict(obs, deterministic=True)
             obs, _, term, trunc, info = env.step(action)
             if term or trunc:
                 break
-    return {k: np.stack(v) for k, v in obs_out.items()}, np.asarray(labels, np.float32)
+        counts["parked"] += int(bool(info["is_success"]))
+        counts["collided"] += int(bool(info["collision"]))
+    return {k: np.stack(v) for k, v in obs_out.items()}, np.asarray(labels, np.float32).reshape(-1, 2), counts
+
+
+def _worker(job: tuple) -> tuple:
+    """One process's share of a round (the model loaded from its file, on the CPU)."""
+    model_path, expert_name, max_plans, cases, beta, max_steps, seed = job
+    import torch
+
+    torch.set_num_threads(1)
+    model = None
+    if beta < 1.0:
+        from .policy import load_model
+
+        model = load_model(str(model_path))
+    expert = ShadowExpert(expert_name, max_plans)
+    obs, labels, counts = rollouts(model, expert, cases, beta, max_steps, seed)
+    return obs, labels, counts, expert.calls
+
+
+def training_cases(grid, n: int, seed: int, types: tuple[str, ...]) -> list[Scenario]:
+    """``n`` grid cases drawn uniformly (split evenly over ``types``), none of them in the
+    smoke or standard samples."""
+    held_out = {int(i) for name in ("smoke", "standard") for i in grid.sample_indices(name)}
+    rng = np.random.default_rng(seed)
+    per_type = max(1, -(-n // len(types)))
+    chosen: list[int] = []
+    for t in types:
+        pool = [int(i) for i in grid.indices(ParkingType.parse(t)) if int(i) not in held_out]
+        chosen += sorted(rng.choice(pool, size=min(per_type, len(pool)), replace=False).tolist())
+    return [grid.scenario(i) for i in chosen]
 
 
 def dagger(
     cfg: RLConfig,
-    demos: str | Path,
+    demos: str | Path | None,
     out: str | Path,
     rounds: int = 3,
-    cases_per_round: int = 60,
     progress: bool = True,
 ) -> dict[str, Any]:
-    """Behaviour cloning on ``demos``, then ``rounds`` DAgger rounds; saves model.zip, train.json."""
-    import gymnasium as gym
+    """Optionally cloning ``demos`` first, then ``rounds`` DAgger rounds; saves model.zip, train.json."""
     import torch
+    from tqdm import tqdm
 
     from mirrorpark_env.grid import Grid
 
     from .train import make_model, make_train_env
 
+    dc = cfg.dagger
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    (out / "rounds").mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(cfg.torch_threads)
     grid = Grid.from_config()
-    obs, actions, episodes = load_demos(demos, cfg.bc.successes_only)
     model = make_model(cfg, make_train_env(cfg, grid))
     t0 = time.perf_counter()
-    fit_actor(model, obs, actions, cfg, progress)
-    env = gym.make("MirrorPark-v0")
-    expert = PlannerExpert()
-    log = []
-    per_type = max(1, cases_per_round // len(cfg.parking_types))
-    for r in range(rounds):
-        cases = grid.sample(per_type, seed=10_000 + cfg.seed * 100 + r, types=tuple(cfg.parking_types))
-        new_obs, new_actions = dagger_round(model, env, expert, cases, cfg.max_episode_steps)
-        obs = {k: np.concatenate([obs[k], new_obs[k]]) for k in obs}
-        actions = np.concatenate([actions, new_actions])
-        err = action_error(model, new_obs, new_actions)  # before refitting: how far the learner strayed
+    obs: dict[str, np.ndarray] = {}
+    actions = np.zeros((0, 2), np.float32)
+    episodes = 0
+    if demos is not None:
+        obs, actions, episodes = load_demos(demos, cfg.bc.successes_only)
         fit_actor(model, obs, actions, cfg, progress)
-        log.append({"round": r + 1, "labelled": int(len(new_actions)), "error_on_new": round(err, 6)})
+    workers = dc.workers or os.cpu_count() or 1
+    types = tuple(cfg.parking_types)
+    log, expert_calls = [], 0
+    ctx = mp.get_context("spawn")  # the parent may hold a GPU: children start clean
+    with ctx.Pool(workers) as pool:
+        for r in range(1, rounds + 1):
+            beta = dc.beta0 * dc.beta_decay ** (r - 1)
+            if not len(actions) and beta < 1.0:
+                raise ValueError("dagger: with no --demos the first round must be the expert's (dagger.beta0: 1.0)")
+            model_path = out / "rounds" / f"model-r{r - 1}.zip"
+            model.save(model_path)
+            (out / "rounds" / "train.json").write_text(f'{{"algo": "{cfg.algo}"}}')
+            cases = training_cases(grid, dc.cases_per_round, 10_000 + cfg.seed * 100 + r, types)
+            seed = cfg.seed * 1000 + r * 100
+            jobs = [
+                (model_path, dc.expert, dc.expert_max_plans, cases[w::workers], beta, dc.max_steps, seed + w)
+                for w in range(workers)
+                if cases[w::workers]
+            ]
+            bar = dict(total=len(jobs), desc=f"DAgger round {r}", disable=not progress)
+            done = list(tqdm(pool.imap(_worker, jobs), **bar))
+            parts = [p for p in done if len(p[1])]
+            new_obs = {k: np.concatenate([p[0][k] for p in parts]) for k in parts[0][0]}
+            new_actions = np.concatenate([p[1] for p in parts])
+            counts = {k: sum(p[2][k] for p in done) for k in done[0][2]}
+            expert_calls += sum(p[3] for p in done)
+            err = round(action_error(model, new_obs, new_actions), 6) if len(actions) else None
+            obs = {k: np.concatenate([obs[k], new_obs[k]]) if obs else new_obs[k] for k in new_obs}
+            actions = np.concatenate([actions, new_actions])
+            fit_actor(model, obs, actions, cfg, progress)
+            log.append(
+                {
+                    "round": r,
+                    "beta": beta,
+                    "labelled": int(len(new_actions)),
+                    "error_on_new_before_fit": err,  # how far the learner strayed (None in a first round)
+                    **counts,
+                    "wall_s": round(time.perf_counter() - t0, 1),
+                }
+            )
+            if progress:
+                print(log[-1], flush=True)
     wall = time.perf_counter() - t0
     return save_trained(
         model,
@@ -112,6 +209,8 @@ def dagger(
         len(actions),
         wall,
         rounds=log,
-        expert_calls=expert.calls,
+        expert=dc.expert,
+        expert_calls=expert_calls,
         epochs_per_fit=cfg.bc.epochs,
+        action_error_on_all=round(action_error(model, obs, actions), 6),
     )

@@ -61,11 +61,21 @@ def make_model(cfg: RLConfig, env: gym.Env):
         tau=cfg.tau,
         train_freq=cfg.train_freq,
         gradient_steps=cfg.gradient_steps,
-        policy_kwargs=dict(net_arch=list(cfg.net_arch)),
+        policy_kwargs=policy_kwargs(cfg),
         device=cfg.device,
         seed=cfg.seed,
         verbose=0,
     )
+
+
+def policy_kwargs(cfg: RLConfig) -> dict:
+    """The network of ``cfg``: its layers and, for ``features: slot_frame``, the extractor."""
+    kw: dict = dict(net_arch=list(cfg.net_arch))
+    if cfg.features == "slot_frame":
+        from .features import SlotFrameFeatures
+
+        kw["features_extractor_class"] = SlotFrameFeatures
+    return kw
 
 
 def latest_checkpoint(out: Path, algo: str) -> tuple[Path, int] | None:
