@@ -37,7 +37,7 @@ def test_ctrl_c_with_several_workers_stops_cleanly_and_says_how_to_resume(tmp_pa
     """SIGINT to the whole process group mid-run: one line, exit 130, stored rows kept."""
     out = tmp_path / "o"
     proc = subprocess.Popen(
-        [sys.executable, "-c", _SLOW_RUN.format(out=str(out), n=40, delay=0.2)],
+        [sys.executable, "-c", _SLOW_RUN.format(out=str(out), n=40, delay=1.0)],
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
