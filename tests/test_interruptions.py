@@ -37,10 +37,13 @@ def test_ctrl_c_with_several_workers_stops_cleanly_and_says_how_to_resume(tmp_pa
     """SIGINT to the whole process group mid-run: one line, exit 130, stored rows kept."""
     out = tmp_path / "o"
     proc = subprocess.Popen(
-        [sys.executable, "-c", _SLOW_RUN.format(out=str(out), n=40, delay=1.0)],
+        [sys.executable, "-c", _SLOW_RUN.format(out=str(out), n=40, delay=0.2)],
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        # A shell's background job inherits SIGINT ignored (pytest run with `&`), and so would
+        # the child: give it the default disposition, as a terminal's foreground job has.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     _wait_for_rows(out, 3)
     os.killpg(proc.pid, signal.SIGINT)
