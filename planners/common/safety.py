@@ -8,9 +8,8 @@ closed loop on the truth model until the car next stands (at most a few seconds)
 footprint on the way comes closer to an obstacle than ``min_gap``, the policy brakes now
 and replans once it stands. Where the car is already closer than ``min_gap`` (a tight
 start, or near its start), the rollout must keep half of that gap: tracking may use some
-of what the planner kept, never all of it, so the check cannot pin the car where it stands. Where the car is far from
-everything the rollout is skipped: no point of it can move farther than a bound on its
-travel. Gaps here test all six separating axes for every pose (``kernels.FastGaps``).
+of what the planner kept, never all of it, so the check cannot pin the car where it
+stands. Gaps here test all six separating axes for every pose (``kernels.FastGaps``).
 """
 
 from __future__ import annotations
@@ -26,7 +25,6 @@ from .clearance import gaps, required_gap
 from .tracker import PathTracker, hold_accel
 
 MIN_GAP = 0.01  # [m] the closest a footprint may come on the way to a stand
-STRETCH = 1.6  # farthest a footprint point moves per metre of rear-axle travel (at full lock ~1.5)
 
 
 class StoppingCheck:
@@ -37,7 +35,6 @@ class StoppingCheck:
         self.g = geometry
         self.p = geometry.vehicle
         self.model = TruthModel(self.p, dt, 0.01)
-        self.dt = dt
         self.min_gap = min_gap
         self.max_steps = max(1, round(horizon / dt))
         st = geometry.start
@@ -51,11 +48,6 @@ class StoppingCheck:
         p = self.p
         here = float(gaps(self.g.checker, np.array([[s.x, s.y, s.theta]]), all_axes=True)[0])
         need = min(self.min_gap, 0.5 * max(here, 0.0))
-        # Where nothing is near, no rollout: no point of the car can move farther than this.
-        t = self.max_steps * self.dt
-        reach = (abs(s.v) + p.a_max * t) * t
-        if here - STRETCH * reach > need:
-            return True
         tr = copy.copy(tracker)
         x, y, th, v, a, d = s.x, s.y, s.theta, s.v, s.a, s.delta
         poses = []

@@ -32,6 +32,7 @@ class TrackingPolicy(Policy):
         super().__init__()
         self.stopping_check = stopping_check  # brake while the car can still stop clear (common.safety)
         self._stopping: StoppingCheck | None = None
+        self.safety_stops = 0  # brakes the stopping check ordered this episode
         self.tracker_config = tracker or TrackerConfig()
         self.max_plans = max_plans
         self.params = None

@@ -159,6 +159,7 @@ def dagger(
     workers = dc.workers or os.cpu_count() or 1
     types = tuple(cfg.parking_types)
     log, expert_calls = [], 0
+    (out / "rounds" / "train.json").write_text(f'{{"algo": "{cfg.algo}"}}')  # how rl:PATH loads a round's model
     ctx = mp.get_context("spawn")  # the parent may hold a GPU: children start clean
     with ctx.Pool(workers) as pool:
         for r in range(1, rounds + 1):
@@ -167,7 +168,6 @@ def dagger(
                 raise ValueError("dagger: with no --demos the first round must be the expert's (dagger.beta0: 1.0)")
             model_path = out / "rounds" / f"model-r{r - 1}.zip"
             model.save(model_path)
-            (out / "rounds" / "train.json").write_text(f'{{"algo": "{cfg.algo}"}}')
             cases = training_cases(grid, dc.cases_per_round, 10_000 + cfg.seed * 100 + r, types)
             seed = cfg.seed * 1000 + r * 100
             jobs = [
