@@ -161,3 +161,34 @@ def test_finetune_buffers_the_demos_and_keeps_the_cloned_actor_through_the_warm_
     summary = json.loads((out / "train.json").read_text())
     assert summary["method"] == "bc+sac" and summary["steps_done"] == 200
     assert summary["demo_transitions_in_buffer"] == len(actions)
+
+
+@pytest.mark.rl
+def test_a_model_trained_with_a_lidar_measures_it_where_the_env_gives_none(tmp_path, require_module):
+    """The ranges the policy measures for itself are the env's own, bit for bit, along a drive."""
+    require_module("stable_baselines3")
+    import gymnasium as gym
+
+    from planners.rl.config import load_rl_config
+    from planners.rl.dagger import dagger
+    from planners.rl.policy import RLPolicy
+
+    lidar = {"rays": 8, "max_range": 5.0}
+    cfg = load_rl_config(
+        "configs/rl_dagger.yaml",
+        {"lidar": lidar, "dagger": {"cases_per_round": 3, "workers": 1}, "bc": {"epochs": 1}},
+    )
+    dagger(cfg, None, tmp_path, rounds=1, progress=False)
+    policy = RLPolicy(tmp_path / "model.zip")
+    plain, ringed = gym.make("MirrorPark-v0"), gym.make("MirrorPark-v0", config={"lidar": lidar})
+    sc = Scenario.from_case_id(CASES[0])
+    obs, info = plain.reset(options={"scenario": sc})
+    want, _ = ringed.reset(options={"scenario": sc})
+    policy.reset(info["geometry"])
+    for _ in range(15):
+        got = policy.observation(obs, info)
+        assert "lidar" not in obs and np.array_equal(got["lidar"], want["lidar"])
+        action = policy.act(obs, info)
+        obs, _, _, _, info = plain.step(action)
+        want, *_ = ringed.step(action)
+    assert np.array_equal(obs["observation"], want["observation"])

@@ -7,7 +7,15 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field
 
-from mirrorpark_env.config import PARKING_TYPES, ParkingTypeName, StrictModel, default_config_path, read_yaml, validate
+from mirrorpark_env.config import (
+    PARKING_TYPES,
+    LidarConfig,
+    ParkingTypeName,
+    StrictModel,
+    default_config_path,
+    read_yaml,
+    validate,
+)
 
 
 class HerConfig(StrictModel):
@@ -76,6 +84,9 @@ class RLConfig(StrictModel):
     # flat: the observation as the env gives it; slot_frame: the pose relative to the target,
     # in its frame, at scene and slot scale (features.SlotFrameFeatures)
     features: Literal["flat", "slot_frame"] = "flat"
+    # a ring of ranges from the body centre to the obstacles in the observation (the env's
+    # ``lidar``): what a policy needs to keep clear of what it cannot infer from the pose
+    lidar: LidarConfig = LidarConfig()
     her: HerConfig = HerConfig()
     curriculum: CurriculumConfig = CurriculumConfig()
     eval: EvalConfig = EvalConfig()
@@ -87,6 +98,11 @@ class RLConfig(StrictModel):
     device: str = "auto"
     torch_threads: int = Field(1, ge=1, le=256)
     seed: int = 0
+
+
+def env_config(cfg: RLConfig) -> dict[str, Any]:
+    """The MirrorPark-v0 config a policy trained with ``cfg`` observes through."""
+    return {"lidar": cfg.lidar.model_dump()} if cfg.lidar.rays else {}
 
 
 def algo_class(name: str):

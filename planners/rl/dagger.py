@@ -20,6 +20,7 @@ standard samples are left out, so that those samples stay unseen.
 
 from __future__ import annotations
 
+import json
 import multiprocessing as mp
 import os
 import time
@@ -31,7 +32,7 @@ import numpy as np
 from mirrorpark_env.scenario import ParkingType, Scenario
 
 from .bc import action_error, fit_actor, load_demos, save_trained
-from .config import RLConfig
+from .config import RLConfig, env_config
 
 
 class ShadowExpert:
@@ -63,14 +64,21 @@ class ShadowExpert:
 
 
 def rollouts(
-    model, expert: ShadowExpert, cases: list[Scenario], beta: float, max_steps: int, seed: int
+    model,
+    expert: ShadowExpert,
+    cases: list[Scenario],
+    beta: float,
+    max_steps: int,
+    seed: int,
+    env_config: dict[str, Any] | None = None,
 ) -> tuple[dict[str, np.ndarray], np.ndarray, dict[str, int]]:
-    """States visited on ``cases`` under the mixed policy, with the expert's labels."""
+    """States visited on ``cases`` under the mixed policy, with the expert's labels
+    (``env_config``: the MirrorPark-v0 config the learner observes through)."""
     import gymnasium as gym
 
     import mirrorpark_env  # noqa: F401
 
-    env = gym.make("MirrorPark-v0")
+    env = gym.make("MirrorPark-v0", config=env_config or {})
     rng = np.random.default_rng(seed)
     obs_out: dict[str, list[np.ndarray]] = {}
     labels: list[np.ndarray] = []
@@ -101,7 +109,7 @@ def rollouts(
 
 def _worker(job: tuple) -> tuple:
     """One process's share of a round (the model loaded from its file, on the CPU)."""
-    model_path, expert_name, max_plans, cases, beta, max_steps, seed = job
+    model_path, expert_name, max_plans, cases, beta, max_steps, seed, env_cfg = job
     import torch
 
     torch.set_num_threads(1)
@@ -111,7 +119,7 @@ def _worker(job: tuple) -> tuple:
 
         model = load_model(str(model_path))
     expert = ShadowExpert(expert_name, max_plans)
-    obs, labels, counts = rollouts(model, expert, cases, beta, max_steps, seed)
+    obs, labels, counts = rollouts(model, expert, cases, beta, max_steps, seed, env_cfg)
     return obs, labels, counts, expert.calls
 
 
@@ -155,11 +163,16 @@ def dagger(
     episodes = 0
     if demos is not None:
         obs, actions, episodes = load_demos(demos, cfg.bc.successes_only)
+        if cfg.lidar.rays and "lidar" not in obs:
+            raise ValueError("lidar.rays: the --demos dataset holds no lidar ranges; set lidar.rays: 0 to clone it")
         fit_actor(model, obs, actions, cfg, progress)
     workers = dc.workers or os.cpu_count() or 1
+    env_cfg = env_config(cfg)
     types = tuple(cfg.parking_types)
     log, expert_calls = [], 0
-    (out / "rounds" / "train.json").write_text(f'{{"algo": "{cfg.algo}"}}')  # how rl:PATH loads a round's model
+    # How rl:PATH loads a round's model: its algorithm and what it observes.
+    meta = {"algo": cfg.algo, "config": {"lidar": cfg.lidar.model_dump()}}
+    (out / "rounds" / "train.json").write_text(json.dumps(meta))
     ctx = mp.get_context("spawn")  # the parent may hold a GPU: children start clean
     with ctx.Pool(workers) as pool:
         for r in range(1, rounds + 1):
@@ -171,7 +184,7 @@ def dagger(
             cases = training_cases(grid, dc.cases_per_round, 10_000 + cfg.seed * 100 + r, types)
             seed = cfg.seed * 1000 + r * 100
             jobs = [
-                (model_path, dc.expert, dc.expert_max_plans, cases[w::workers], beta, dc.max_steps, seed + w)
+                (model_path, dc.expert, dc.expert_max_plans, cases[w::workers], beta, dc.max_steps, seed + w, env_cfg)
                 for w in range(workers)
                 if cases[w::workers]
             ]

@@ -23,10 +23,14 @@ FINE = 0.3  # [m] scale of the squashed offsets inside the slot
 class SlotFrameFeatures(BaseFeaturesExtractor):
     """(ex/5, ey/5, tanh(ex/0.3), tanh(ey/0.3), cos, sin of the heading error, then the
     observation's speed, acceleration, steering, road width, slot sizes and type): 15 values,
-    ``ex, ey`` the rear axle's offset from the target in the target's frame [m]."""
+    ``ex, ey`` the rear axle's offset from the target in the target's frame [m]; then the
+    lidar's ranges where the observation holds them."""
 
     def __init__(self, observation_space: gym.spaces.Dict) -> None:
-        super().__init__(observation_space, features_dim=15)
+        lidar = observation_space.spaces.get("lidar")
+        rays = 0 if lidar is None else int(lidar.shape[0])
+        super().__init__(observation_space, features_dim=15 + rays)
+        self.rays = rays
 
     def forward(self, obs: dict[str, torch.Tensor]) -> torch.Tensor:
         o, g = obs["observation"], obs["desired_goal"]
@@ -36,4 +40,5 @@ class SlotFrameFeatures(BaseFeaturesExtractor):
         ch = o[:, 2] * c + o[:, 3] * s  # cos and sin of (heading - target heading)
         sh = o[:, 3] * c - o[:, 2] * s
         head = torch.stack([ex / COARSE, ey / COARSE, torch.tanh(ex / FINE), torch.tanh(ey / FINE), ch, sh], dim=1)
-        return torch.cat([head, o[:, 4:13]], dim=1)
+        parts = [head, o[:, 4:13]] + ([obs["lidar"]] if self.rays else [])
+        return torch.cat(parts, dim=1)

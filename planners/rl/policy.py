@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from mirrorpark_env.lidar import Lidar
 from mirrorpark_env.scenario import ScenarioGeometry
 
 from ..base import PlanStats, Policy
@@ -26,7 +27,10 @@ def load_model(path: str):
     if not p.is_file():
         raise ValueError(f"rl model: no such file {str(p)!r} (pass the model.zip that train-rl wrote)")
     meta = p.with_name("train.json")
-    algo = json.loads(meta.read_text()).get("algo", "sac") if meta.exists() else "sac"
+    info = json.loads(meta.read_text()) if meta.exists() else {}
+    algo = info.get("algo", "sac")
+    lidar = info.get("config", {}).get("lidar", {})
+    env_config = {"lidar": lidar} if lidar.get("rays") else {}
     try:
         import gymnasium as gym
 
@@ -39,7 +43,9 @@ def load_model(path: str):
         raise ValueError("rl model: needs the rl extra: pip install torch==2.13.0 && pip install -e '.[rl]'") from None
     try:
         # A model trained with HER needs an env to rebuild its buffer; only its spaces are used.
-        return Algo.load(p, env=gym.make("MirrorPark-v0"), device="cpu")
+        model = Algo.load(p, env=gym.make("MirrorPark-v0", config=env_config), device="cpu")
+        model.lidar_config = lidar if env_config else None  # what act() must add to the env's observation
+        return model
     except Exception as err:  # noqa: BLE001  (a bad file: one clear line)
         raise ValueError(f"rl model: cannot load {str(p)!r} as {algo.upper()}: {err}") from None
 
@@ -56,9 +62,21 @@ class RLPolicy(Policy):
     def reset(self, geometry: ScenarioGeometry) -> None:
         self.stats = []
         self.gave_up = False
+        cfg = self.model.lidar_config
+        self._lidar = Lidar(geometry.obstacles, cfg["rays"], cfg["max_range"]) if cfg else None
+        self._centre = geometry.vehicle.center_offset
+
+    def observation(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, np.ndarray]:
+        """``obs`` as the model saw it in training: a model trained with a lidar ring gets its
+        ranges, measured as the env measures them, where the env gives none."""
+        if self._lidar is None or "lidar" in obs:
+            return obs
+        s = info["vehicle_state"]
+        c, si = np.cos(s.theta), np.sin(s.theta)
+        return {**obs, "lidar": self._lidar.read(s.x + self._centre * c, s.y + self._centre * si, s.theta)}
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         t0 = time.perf_counter()
-        action, _ = self.model.predict(obs, deterministic=True)
+        action, _ = self.model.predict(self.observation(obs, info), deterministic=True)
         self.stats.append(PlanStats(time.perf_counter() - t0, "ok"))
         return np.asarray(action, dtype=np.float32)

@@ -19,14 +19,14 @@ import numpy as np
 import mirrorpark_env  # noqa: F401  (registers MirrorPark-v0)
 from mirrorpark_env.grid import Grid
 
-from .config import RLConfig, algo_class
+from .config import RLConfig, algo_class, env_config
 from .curriculum import CurriculumScenarios, FixedScenarios, LeanInfo
 
 
 def make_train_env(cfg: RLConfig, grid: Grid) -> gym.Env:
     from stable_baselines3.common.monitor import Monitor
 
-    env = gym.make("MirrorPark-v0", max_episode_steps=cfg.max_episode_steps)
+    env = gym.make("MirrorPark-v0", max_episode_steps=cfg.max_episode_steps, config=env_config(cfg))
     start = cfg.curriculum.start_fraction if cfg.curriculum.enabled else 1.0
     return Monitor(LeanInfo(CurriculumScenarios(env, cfg.parking_types, level=start, grid=grid)))
 
@@ -36,7 +36,7 @@ def make_eval_env(cfg: RLConfig, grid: Grid) -> gym.Env:
 
     per_type = max(1, -(-cfg.eval.episodes // len(cfg.parking_types)))
     cases = grid.sample(per_type, seed=cfg.seed + 1, types=tuple(cfg.parking_types))
-    return Monitor(FixedScenarios(gym.make("MirrorPark-v0"), cases[: cfg.eval.episodes]))
+    return Monitor(FixedScenarios(gym.make("MirrorPark-v0", config=env_config(cfg)), cases[: cfg.eval.episodes]))
 
 
 def make_model(cfg: RLConfig, env: gym.Env):
