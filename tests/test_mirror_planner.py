@@ -380,3 +380,26 @@ def test_a_parallel_slot_of_118_car_lengths_parks_by_turns_inside_it():
     info, _ = run_episode(env, policy, "parallel_rw4.50_sl4.52_sw2.50_th+0_y2.00")
     assert info["is_success"], (info["failed_criterion"], info["vehicle_state"])
     assert info["direction_switches"] >= 5
+
+
+def test_a_plan_that_stops_hard_next_to_an_obstacle_is_not_safe():
+    """A plan may end at zero speed with the acceleration of a hard stop still on; the lag
+    then carries the car on under the policy's brake. In this 4.22 m slot (a state traced
+    from an episode that touched the front neighbour that way) the plan alone is clear and
+    ends standing, its brake afterwards is not, and the truth check must see that."""
+    from planners.mirror.checks import Checks
+
+    g = Scenario.from_case_id("parallel_rw3.50_sl4.22_sw2.50_th+0_y2.60").build()
+    checks = Checks(g, MirrorPlannerConfig())
+    xi0 = np.array([1.906, 1.819, 0.247, -0.280, 2.761, 0.523])  # reversing, braking hard
+    u = np.array([[g.vehicle.a_max, 0.995 * g.vehicle.max_steer]])
+    end = checks.truth.rollout(xi0, u)
+    start = checks.start(xi0)
+    assert abs(end[-1, 3]) < 0.05 and end[-1, 4] > 2.0  # standing, still accelerating forward
+    assert checks.clear_and_stopped([end[:, :3]], end[-1, :6], start)  # the plan alone passes
+    tail = checks.brake_tail(end[-1, :6])
+    assert tail[:, 3].max() > 0.15 and abs(tail[-1, 3]) < 1e-3  # rolls on, then stands
+    assert not checks.truth_safe(xi0, u, start)
+    calm = xi0.copy()
+    calm[3:5] = 0.0  # the same pose at rest: nothing rolls on
+    assert checks.truth_safe(calm, np.array([[0.0, calm[5]]]), checks.start(calm))

@@ -19,6 +19,8 @@ from .frames import XI_A, XI_D, XI_V, real_commands
 from .mirror_line import MirrorLine
 from .plans import Candidate, Plan
 
+BRAKE_STEPS = 30  # control steps of the brake checked after a plan (3 s: then under 1 mm/s)
+
 
 @dataclass(frozen=True)
 class Start:
@@ -77,9 +79,22 @@ class Checks:
 
     def truth_safe(self, xi0: np.ndarray, u_real: np.ndarray, start: Start, clearance: float = 0.005) -> bool:
         """On the environment's own model (0.01 s sub-steps) the plan keeps clear and ends
-        standing, so that whatever comes after it, the car is at rest."""
+        standing, and so does the policy's brake after its last command: a plan may end at
+        zero speed with the acceleration still high (a hard stop), and if no next plan
+        comes, the lag carries the car on until the brake has caught it."""
         sub = self.truth.rollout(xi0, u_real)
-        return self.clear_and_stopped([sub[:, :3]], sub[-1, :6], start, clearance)
+        tail = self.brake_tail(sub[-1, :6])
+        return self.clear_and_stopped([sub[:, :3], tail[:, :3]], sub[-1, :6], start, clearance)
+
+    def brake_tail(self, state: np.ndarray, steps: int = BRAKE_STEPS) -> np.ndarray:
+        """Sub-step states (steps * n, 7) under the policy's brake from ``state``: the hold law
+        on the acceleration, the steering held where it is."""
+        rows: list[tuple[float, ...]] = []
+        s = tuple(float(v) for v in state[:6])
+        for _ in range(steps):
+            rows += self.truth.step_rows(s, hold_accel(self.p, s[XI_V], s[XI_A]), s[XI_D])
+            s = rows[-1][:6]
+        return np.array(rows)
 
     # ------------------------------------------------------------------ cost
     def true_cost(self, real: np.ndarray, goal: np.ndarray, theta_t: float) -> tuple[float, float, float]:
