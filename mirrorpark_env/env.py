@@ -271,8 +271,7 @@ class MirrorParkEnv(gym.Env):
             "desired_goal": self._desired.copy(),
         }
         if self._lidar is not None:
-            off = self.params.center_offset
-            out["lidar"] = self._lidar.read(self.state[0] + off * c, self.state[1] + off * s, th)
+            out["lidar"] = self._lidar.read_body(self.state[0], self.state[1], th, self.params.center_offset)
         return out
 
     def _info(self, out_of_scene: bool) -> dict[str, Any]:

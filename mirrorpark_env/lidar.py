@@ -31,6 +31,11 @@ class Lidar:
         self._a, self._e = a[keep], (b - a)[keep]
         self._angles = 2 * math.pi * np.arange(rays) / rays
 
+    def read_body(self, x: float, y: float, heading: float, centre_offset: float) -> np.ndarray:
+        """``read`` from the body centre of a car whose rear axle stands at (x, y): what the
+        env observes, and what a policy trained on it measures for itself."""
+        return self.read(x + centre_offset * math.cos(heading), y + centre_offset * math.sin(heading), heading)
+
     def read(self, x: float, y: float, heading: float) -> np.ndarray:
         """Normalised distances (rays,) from the point (x, y), ray 0 along ``heading``."""
         if not len(self._a):

@@ -72,8 +72,7 @@ class RLPolicy(Policy):
         if self._lidar is None or "lidar" in obs:
             return obs
         s = info["vehicle_state"]
-        c, si = np.cos(s.theta), np.sin(s.theta)
-        return {**obs, "lidar": self._lidar.read(s.x + self._centre * c, s.y + self._centre * si, s.theta)}
+        return {**obs, "lidar": self._lidar.read_body(s.x, s.y, s.theta, self._centre)}
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         t0 = time.perf_counter()
