@@ -20,17 +20,27 @@ from mirrorpark_env.scenario import ScenarioGeometry
 from ..base import PlanStats, Policy
 
 
+def _train_json(model_path: Path) -> dict[str, Any]:
+    meta = model_path.with_name("train.json")
+    return json.loads(meta.read_text()) if meta.exists() else {}
+
+
+def trained_lidar(model_path: str | Path) -> dict[str, Any] | None:
+    """The lidar (rays, max_range) the model at ``model_path`` observed in training, from
+    its train.json; None without one."""
+    lidar = _train_json(Path(model_path)).get("config", {}).get("lidar", {})
+    return lidar if lidar.get("rays") else None
+
+
 @lru_cache(maxsize=4)
 def load_model(path: str):
     """The model at ``path`` (SAC or TQC, as its train.json says); cached per process."""
     p = Path(path)
     if not p.is_file():
         raise ValueError(f"rl model: no such file {str(p)!r} (pass the model.zip that train-rl wrote)")
-    meta = p.with_name("train.json")
-    info = json.loads(meta.read_text()) if meta.exists() else {}
-    algo = info.get("algo", "sac")
-    lidar = info.get("config", {}).get("lidar", {})
-    env_config = {"lidar": lidar} if lidar.get("rays") else {}
+    algo = _train_json(p).get("algo", "sac")
+    lidar = trained_lidar(p)
+    env_config = {"lidar": lidar} if lidar else {}
     try:
         import gymnasium as gym
 
@@ -43,9 +53,7 @@ def load_model(path: str):
         raise ValueError("rl model: needs the rl extra: pip install torch==2.13.0 && pip install -e '.[rl]'") from None
     try:
         # A model trained with HER needs an env to rebuild its buffer; only its spaces are used.
-        model = Algo.load(p, env=gym.make("MirrorPark-v0", config=env_config), device="cpu")
-        model.lidar_config = lidar if env_config else None  # what act() must add to the env's observation
-        return model
+        return Algo.load(p, env=gym.make("MirrorPark-v0", config=env_config), device="cpu")
     except Exception as err:  # noqa: BLE001  (a bad file: one clear line)
         raise ValueError(f"rl model: cannot load {str(p)!r} as {algo.upper()}: {err}") from None
 
@@ -57,12 +65,13 @@ class RLPolicy(Policy):
         super().__init__()
         self.path = str(Path(path).resolve())
         self.model = load_model(self.path)
+        self.lidar_config = trained_lidar(self.path)  # what observation() adds where the env gives none
         self.name = f"rl:{path}"
 
     def reset(self, geometry: ScenarioGeometry) -> None:
         self.stats = []
         self.gave_up = False
-        cfg = self.model.lidar_config
+        cfg = self.lidar_config
         self._lidar = Lidar(geometry.obstacles, cfg["rays"], cfg["max_range"]) if cfg else None
         self._centre = geometry.vehicle.center_offset
 
