@@ -192,3 +192,19 @@ def test_a_model_trained_with_a_lidar_measures_it_where_the_env_gives_none(tmp_p
         obs, _, _, _, info = plain.step(action)
         want, *_ = ringed.step(action)
     assert np.array_equal(obs["observation"], want["observation"])
+
+
+@pytest.mark.rl
+def test_cloning_demonstrations_without_the_lidar_the_config_asks_for_is_refused(require_module):
+    require_module("stable_baselines3")
+    from mirrorpark_env.grid import Grid
+    from planners.rl.bc import fit_actor
+    from planners.rl.config import load_rl_config
+    from planners.rl.train import make_model, make_train_env
+
+    cfg = load_rl_config("configs/rl_dagger.yaml", {"lidar": {"rays": 8, "max_range": 5.0}})
+    model = make_model(cfg, make_train_env(cfg, Grid.from_config()))
+    obs = {k: np.zeros((4, *space.shape), np.float32) for k, space in model.observation_space.spaces.items()}
+    del obs["lidar"]
+    with pytest.raises(ValueError, match=r"no lidar observations.*lidar.rays: 8"):
+        fit_actor(model, obs, np.zeros((4, 2), np.float32), cfg, progress=False)

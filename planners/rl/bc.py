@@ -51,9 +51,19 @@ def load_demos(demos: str | Path, successes_only: bool = True) -> tuple[dict[str
 def fit_actor(
     model, obs: dict[str, np.ndarray], actions: np.ndarray, cfg: RLConfig, progress: bool = True
 ) -> list[float]:
-    """Regress the model's deterministic action on ``actions``; the mean loss of each epoch."""
+    """Regress the model's deterministic action on ``actions``; the mean loss of each epoch.
+
+    Raises ``ValueError`` where ``obs`` lacks a part of what the model observes (a dataset
+    recorded without the lidar the config asks for)."""
     import torch
     from tqdm import tqdm
+
+    missing = sorted(set(model.observation_space.spaces) - set(obs))
+    if missing:
+        raise ValueError(
+            f"the demonstrations hold no {', '.join(missing)} observations, which this config's model "
+            f"observes (lidar.rays: {cfg.lidar.rays}); set lidar.rays: 0 to clone them"
+        )
 
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)

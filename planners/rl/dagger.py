@@ -163,8 +163,6 @@ def dagger(
     episodes = 0
     if demos is not None:
         obs, actions, episodes = load_demos(demos, cfg.bc.successes_only)
-        if cfg.lidar.rays and "lidar" not in obs:
-            raise ValueError("lidar.rays: the --demos dataset holds no lidar ranges; set lidar.rays: 0 to clone it")
         fit_actor(model, obs, actions, cfg, progress)
     workers = dc.workers or os.cpu_count() or 1
     env_cfg = env_config(cfg)
