@@ -208,3 +208,36 @@ def test_cloning_demonstrations_without_the_lidar_the_config_asks_for_is_refused
     del obs["lidar"]
     with pytest.raises(ValueError, match=r"no lidar observations.*lidar.rays: 8"):
         fit_actor(model, obs, np.zeros((4, 2), np.float32), cfg, progress=False)
+
+
+def test_an_expert_that_replans_moving_tells_a_drifted_learner_how_to_go_on():
+    """After a drift the tracking expert brakes to a stand before it plans again; with
+    ``replan_moving`` (DAgger's option) it plans at once from the moving car."""
+    import gymnasium as gym
+
+    from evaluation.registry import make_policy
+
+    sc = Scenario.from_case_id(CASES[1])
+    env = gym.make("MirrorPark-v0")
+
+    def speeds_at_plans(replan_moving: bool) -> list[float]:
+        """A learner that does what the expert says, but holds its wheels straight after
+        2.5 s: it drifts off the expert's path while driving."""
+        expert = make_policy("guide-only")
+        expert.inner.replan_moving = replan_moving
+        o, info = env.reset(options={"scenario": sc})
+        expert.reset(info["geometry"])
+        out = []
+        for t in range(60):
+            n = len(expert.inner.stats)
+            a = expert.act(o, info)
+            if len(expert.inner.stats) > n:
+                out.append(abs(info["vehicle_state"].v))
+            o, _, term, trunc, info = env.step(np.array([a[0], a[1] if t < 25 else 0.0], np.float32))
+            if term or trunc:
+                break
+        return out
+
+    standing, moving = speeds_at_plans(False), speeds_at_plans(True)
+    assert len(standing) == 2 and max(standing) <= 0.02  # the replan waits for the car to stand
+    assert len(moving) == 2 and moving[1] > 0.5  # the replan comes while the car drives on

@@ -35,6 +35,10 @@ class TrackingPolicy(Policy):
         self.safety_stops = 0  # brakes the stopping check ordered this episode
         self.tracker_config = tracker or TrackerConfig()
         self.max_plans = max_plans
+        # After a drift, plan again at once from where the car is, moving or not (a DAgger
+        # expert's labels: a drifted learner is told how to go on, not to stop; dagger.py).
+        # Off: brake to a stand first, as a car executing its own plans does.
+        self.replan_moving = False
         self.params = None
 
     @abstractmethod
@@ -55,6 +59,7 @@ class TrackingPolicy(Policy):
         self.tracker: PathTracker | None = None
         self.gave_up = False
         self._replan_when_stopped = True
+        self._stand_first = False
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         if self.params is None:
@@ -65,7 +70,8 @@ class TrackingPolicy(Policy):
             self._replan_when_stopped = True
             self.tracker = tr = None
         if tr is None:
-            if self.gave_up or not self._replan_when_stopped or abs(s.v) > 0.02:
+            moving_ok = self.replan_moving and not self._stand_first
+            if self.gave_up or not self._replan_when_stopped or (abs(s.v) > 0.02 and not moving_ok):
                 return self._brake(s)
             self._plan(s)
             tr = self.tracker
@@ -73,15 +79,18 @@ class TrackingPolicy(Policy):
                 return self._brake(s)
         a, d = tr.command(s)
         if self._stopping is not None and not self._stopping.safe(s, tr):
-            # Tracking has drifted toward an obstacle: stop while the car can, then replan.
+            # Tracking has drifted toward an obstacle: stop while the car can, then replan
+            # from a stand (also with ``replan_moving``: the car is about to hit something).
             self.tracker = None
             self._replan_when_stopped = True
+            self._stand_first = True
             self.safety_stops += 1
             return self._brake(s)
         return to_action(self.params, a, d)
 
     def _plan(self, s: VehicleState) -> None:
         self._replan_when_stopped = False
+        self._stand_first = False
         if len(self.stats) >= self.max_plans:
             self.gave_up = True
             return

@@ -63,6 +63,9 @@ class DaggerConfig(StrictModel):
     beta_decay: float = Field(0.5, ge=0, le=1)  # ... times this each further round
     max_steps: int = Field(900, ge=1, le=1800)  # steps per rollout (0.1 s each)
     expert_max_plans: int = Field(20, ge=1)  # plans the expert may make per rollout (it replans after drifts)
+    # After a drift the expert plans again at once, moving or not (TrackingPolicy.replan_moving);
+    # false: it brakes to a stand first, and its labels there say "brake".
+    expert_replans_moving: bool = False
     workers: int = Field(0, ge=0)  # rollout processes (0: all cores)
 
 

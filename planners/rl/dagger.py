@@ -38,7 +38,7 @@ from .config import RLConfig, env_config
 class ShadowExpert:
     """A named planner policy asked for its action at the states the learner visits."""
 
-    def __init__(self, planner: str, max_plans: int) -> None:
+    def __init__(self, planner: str, max_plans: int, replan_moving: bool = False) -> None:
         from evaluation.registry import make_policy
         from planners.common.tracking import TrackingPolicy
 
@@ -49,6 +49,7 @@ class ShadowExpert:
                 f"dagger.expert: {planner!r} does not track a path in feedback; use guide-only or hybrid-astar"
             )
         inner.max_plans = max_plans
+        inner.replan_moving = replan_moving
         self.calls = 0
 
     def reset(self, geometry) -> None:
@@ -109,7 +110,7 @@ def rollouts(
 
 def _worker(job: tuple) -> tuple:
     """One process's share of a round (the model loaded from its file, on the CPU)."""
-    model_path, expert_name, max_plans, cases, beta, max_steps, seed, env_cfg = job
+    model_path, expert_name, max_plans, replan_moving, cases, beta, max_steps, seed, env_cfg = job
     import torch
 
     torch.set_num_threads(1)
@@ -118,7 +119,7 @@ def _worker(job: tuple) -> tuple:
         from .policy import load_model
 
         model = load_model(str(model_path))
-    expert = ShadowExpert(expert_name, max_plans)
+    expert = ShadowExpert(expert_name, max_plans, replan_moving)
     obs, labels, counts = rollouts(model, expert, cases, beta, max_steps, seed, env_cfg)
     return obs, labels, counts, expert.calls
 
@@ -182,7 +183,17 @@ def dagger(
             cases = training_cases(grid, dc.cases_per_round, 10_000 + cfg.seed * 100 + r, types)
             seed = cfg.seed * 1000 + r * 100
             jobs = [
-                (model_path, dc.expert, dc.expert_max_plans, cases[w::workers], beta, dc.max_steps, seed + w, env_cfg)
+                (
+                    model_path,
+                    dc.expert,
+                    dc.expert_max_plans,
+                    dc.expert_replans_moving,
+                    cases[w::workers],
+                    beta,
+                    dc.max_steps,
+                    seed + w,
+                    env_cfg,
+                )
                 for w in range(workers)
                 if cases[w::workers]
             ]
