@@ -403,3 +403,24 @@ def test_a_plan_that_stops_hard_next_to_an_obstacle_is_not_safe():
     calm = xi0.copy()
     calm[3:5] = 0.0  # the same pose at rest: nothing rolls on
     assert checks.truth_safe(calm, np.array([[0.0, calm[5]]]), checks.start(calm))
+
+
+@pytest.mark.slow
+def test_where_the_guide_finds_no_path_the_fallback_plans_without_it():
+    """A start across a 3.5 m road, straight at an angle slot: the guide search finds no path.
+    Without the fallback the policy gives up standing; with it, the unguided multi-start
+    (within its smaller budget) plans the first move and the car parks."""
+    case_id = "angle_rw3.50_sl4.82_sw2.47_th+0_y2.60"
+    env = gym.make("MirrorPark-v0").unwrapped
+
+    def run(calls: int):
+        policy = MirrorPolicy(MirrorPlannerConfig(fallback_calls=calls, time_limit_s=NO_NET))
+        info, _ = run_episode(env, policy, case_id)
+        return info, policy
+
+    info, policy = run(0)
+    assert not info["is_success"] and info["path_length"] < 0.01
+    assert [s.status for s in policy.stats] == ["no_guide", "no_guide"]
+    info, policy = run(3)
+    assert info["is_success"] and not info["collision"], info["failed_criterion"]
+    assert policy.stats[0].detail["guided"] is False  # the first plan came from the fallback

@@ -50,6 +50,12 @@ class MirrorPlannerConfig(StrictModel):
     # [m/s] more seed speeds for a plan with a switch: other switch steps, the cheapest plan used
     switch_speeds: tuple[Annotated[float, Field(gt=0, le=3)], ...] = (1.5, 2.5)
     seed_accel: float = Field(1.5, gt=0, le=3)  # [m/s^2] its acceleration and planned deceleration
+    # Where the guide finds no path from a standing car, plan without it (the multi-start of
+    # an unguided planner) on at most this many calls in a row (0: never), within a smaller
+    # budget: one candidate refined, these SCP rounds and branch-and-bound nodes.
+    fallback_calls: int = Field(0, ge=0, le=10)
+    fallback_iterations: int = Field(4, ge=1, le=1000)
+    fallback_node_limit: int = Field(10, ge=1, le=100_000)
 
 
 class MirrorPolicyConfig(StrictModel):

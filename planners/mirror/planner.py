@@ -70,6 +70,8 @@ class MirrorPlanner:
         e = cfg.qp_tolerance
         self.qp_backend = PiqpQP(e, 0.1 * e, kkt_solver=cfg.kkt_solver, eps_gap=(e, 0.1 * e))
         self.miqp = BranchAndBound(self.qp_backend, cfg.node_limit, cfg.time_limit_s)
+        self.fallback_miqp = BranchAndBound(self.qp_backend, cfg.fallback_node_limit, cfg.time_limit_s)
+        self._fallbacks = 0  # calls in a row that fell back on the unguided multi-start
         self.line = mirror_line(geometry, margin=cfg.mirror_margin)
         self.qp = MirrorQP(self.p, cfg, ObstacleRows(geometry, cfg.obstacle_margin, cfg.horizon, cfg.model_substeps))
         self.checks = Checks(geometry, cfg)
@@ -94,17 +96,25 @@ class MirrorPlanner:
     def plan(self, state: VehicleState, candidates: list[Candidate] | None = None) -> Plan | None:
         """Best collision-free plan from ``state``, or None.
 
-        Guided (the default): one candidate, from the guide. Otherwise the candidates
-        given, or both gears at two switch steps and without a switch, seeded by their
-        classic shapes. Statistics of the call, a failed one included, are in
-        ``self.last_stats``.
+        Guided (the default): one candidate, from the guide; where the guide finds no path
+        from a standing car, the unguided multi-start within the fallback budget, on at
+        most ``fallback_calls`` calls in a row. Otherwise the candidates given, or both
+        gears at two switch steps and without a switch, seeded by their classic shapes.
+        Statistics of the call, a failed one included, are in ``self.last_stats``.
         """
         t0 = time.perf_counter()
         xi0 = state.as_array()
         start = self.checks.start(xi0)
-        if self.guided and candidates is None:
-            return self._plan_guided(xi0, start, t0)
-        return self._plan_multistart(state, xi0, start, candidates, t0)
+        if not self.guided or candidates is not None:
+            return self._plan_multistart(state, xi0, start, candidates, t0)
+        plan = self._plan_guided(xi0, start, t0)
+        if plan is not None:
+            self._fallbacks = 0
+        elif self.last_stats.status == "no_guide" and abs(state.v) < 0.05 and self._fallbacks < self.cfg.fallback_calls:
+            self._fallbacks += 1
+            cfg = self.cfg
+            plan = self._plan_multistart(state, xi0, start, None, t0, 1, cfg.fallback_iterations, self.fallback_miqp)
+        return plan
 
     def _plan_guided(self, xi0: np.ndarray, start: Start, t0: float) -> Plan | None:
         """One plan along the guide's next switch: seed from tracking the guide, then SCP
@@ -163,9 +173,18 @@ class MirrorPlanner:
         return best, {**best_st, **totals, "safety_net": net}, cand, goal, tried
 
     def _plan_multistart(
-        self, state: VehicleState, xi0: np.ndarray, start: Start, candidates: list[Candidate] | None, t0: float
+        self,
+        state: VehicleState,
+        xi0: np.ndarray,
+        start: Start,
+        candidates: list[Candidate] | None,
+        t0: float,
+        refine: int | None = None,
+        iterations: int | None = None,
+        miqp: BranchAndBound | None = None,
     ) -> Plan | None:
-        """The best plan over the candidates' shape seeds, refined by SCP."""
+        """The best plan over the candidates' shape seeds, refined by SCP (budget: ``refine``
+        candidates, ``iterations`` rounds each and ``miqp``'s nodes; default the config's)."""
         line = self.line
         if not line.fixed:  # Eqs. (5), (6): bound by the heading change still to go
             psi = min(abs(unwrap_near(self.g.target[2], state.theta) - state.theta), math.pi / 2)
@@ -184,9 +203,9 @@ class MirrorPlanner:
         net = False
         tried = []
         for n, (cand, seed) in enumerate(seeds):
-            if n >= self.cfg.refine_candidates and best is not None and best.cost < 0.9 * stay:
+            if n >= (refine or self.cfg.refine_candidates) and best is not None and best.cost < 0.9 * stay:
                 break  # refine the best few; go on down the list while none is clear and progressing
-            plan, st = self.solve_candidate(xi0, cand, goal, start, line, seed)
+            plan, st = self.solve_candidate(xi0, cand, goal, start, line, seed, iterations, miqp=miqp)
             for k in totals:
                 totals[k] += st[k]
             net = net or st.get("safety_net", False)
@@ -222,6 +241,7 @@ class MirrorPlanner:
         seed: np.ndarray | None = None,
         iterations: int | None = None,
         band: bool = False,
+        miqp: BranchAndBound | None = None,
     ) -> tuple[Plan | None, dict]:
         """SCP with Algorithm I inside, for one (direction, switch step) candidate toward ``goal``.
 
@@ -231,7 +251,8 @@ class MirrorPlanner:
         cost plus the exact penalty on penetration); otherwise the trust-region penalty
         is raised and the round repeats. Without improvement possible, the search stops.
         ``band``: the switch lies in the band of ``switch_band`` toward ``goal`` (linearised
-        at each reference); otherwise on ``line`` in the natural order. Returns the plan (None if no
+        at each reference); otherwise on ``line`` in the natural order. ``miqp``: the
+        branch and bound to use (default the planner's). Returns the plan (None if no
         clear one is confirmed by the truth model) and the candidate's statistics, with
         ``"partial"``: a safe stop short of the first contact, where there is one.
         """
@@ -277,7 +298,7 @@ class MirrorPlanner:
                 trust_scale=trust_scale,
                 band=rows,
             )
-            x = self._solve(qp, disj, active, preferred, st)
+            x = self._solve(qp, disj, active, preferred, st, miqp or self.miqp)
             if x is None:
                 st["status"] = "infeasible"
                 break
@@ -365,10 +386,10 @@ class MirrorPlanner:
             lin_at[cand.switch] = FLIP @ lin_at[cand.switch]
         return self.model.jacobian_linearisation(lin_at, ref.u)
 
-    def _solve(self, qp, disj, active, preferred, st: dict) -> np.ndarray | None:
-        """The QP, or the MIQP where there are disjunctions; effort counted into ``st``."""
+    def _solve(self, qp, disj, active, preferred, st: dict, miqp: BranchAndBound) -> np.ndarray | None:
+        """The QP, or the MIQP (by ``miqp``) where there are disjunctions; effort counted into ``st``."""
         if disj:
-            res = self.miqp.solve(qp, disj, active, preferred)
+            res = miqp.solve(qp, disj, active, preferred)
             st["qp_solves"] += res.qp_solves
             st["nodes"] += res.nodes
             st["safety_net"] = st.get("safety_net", False) or res.status == "time_limit"
