@@ -112,8 +112,8 @@ class MirrorPlanner:
             self._fallbacks = 0
         elif self.last_stats.status == "no_guide" and abs(state.v) < 0.05 and self._fallbacks < self.cfg.fallback_calls:
             self._fallbacks += 1
-            cfg = self.cfg
-            plan = self._plan_multistart(state, xi0, start, None, t0, 1, cfg.fallback_iterations, self.fallback_miqp)
+            budget = (1, self.cfg.fallback_iterations, self.fallback_miqp)
+            plan = self._plan_multistart(state, xi0, start, None, t0, *budget)
         return plan
 
     def _plan_guided(self, xi0: np.ndarray, start: Start, t0: float) -> Plan | None:
