@@ -53,7 +53,7 @@ class MirrorPlannerConfig(StrictModel):
     # Where the guide finds no path from a standing car, plan without it (the multi-start of
     # an unguided planner) on at most this many calls in a row (0: never), within a smaller
     # budget: one candidate refined, these SCP rounds and branch-and-bound nodes.
-    fallback_calls: int = Field(3, ge=0, le=10)
+    fallback_calls: int = Field(0, ge=0, le=10)
     fallback_iterations: int = Field(4, ge=1, le=1000)
     fallback_node_limit: int = Field(10, ge=1, le=100_000)
 
