@@ -34,6 +34,13 @@ def _mirror_cold() -> Policy:
     return _in_slot_frame(MirrorPolicy(MirrorPlannerConfig(guide=False)))
 
 
+def _mirror_value() -> Policy:
+    from planners.mirror.config import MirrorPlannerConfig
+    from planners.mirror.policy import MirrorPolicy
+
+    return _in_slot_frame(MirrorPolicy(MirrorPlannerConfig(guide=False, value=True)))
+
+
 def _guide_only() -> Policy:
     from planners.mirror.guide_policy import GuideOnlyPolicy
 
@@ -50,6 +57,7 @@ PLANNERS: dict[str, Callable[[], Policy]] = {
     "mirror": _mirror,  # SCP re-linearisation (the default)
     "mirror-paper": _mirror_paper,  # the paper's fixed-angle linearisation, for comparison
     "mirror-cold": _mirror_cold,  # the default without the geometric guide (multi-start seeds)
+    "mirror-value": _mirror_value,  # no guide: plans aimed and compared by a cost to go (value.py)
     "guide-only": _guide_only,  # the geometric guide tracked, no QP (the ablation)
     "hybrid-astar": _hybrid_astar,  # the search-based baseline
 }

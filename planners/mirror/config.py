@@ -8,6 +8,8 @@ from pydantic import Field
 
 from mirrorpark_env.config import StrictModel
 
+from .value import ValueConfig
+
 
 class MirrorPlannerConfig(StrictModel):
     """Weights, limits and solver settings of the mirrored-target planner."""
@@ -56,6 +58,15 @@ class MirrorPlannerConfig(StrictModel):
     fallback_calls: int = Field(0, ge=0, le=10)
     fallback_iterations: int = Field(4, ge=1, le=1000)
     fallback_node_limit: int = Field(10, ge=1, le=100_000)
+    # The value mode (``mirror-value``, value_plan.py): candidates over first gear and switch,
+    # each aimed down a cost to go (value.py) and compared by driven cost plus V at the end.
+    value: bool = False
+    value_lattice: ValueConfig = ValueConfig()
+    value_candidates: int = Field(3, ge=1, le=20)  # switch candidates refined where V is blind
+    value_updates: int = Field(2, ge=1, le=10)  # goal updates down V per candidate
+    value_iterations: int = Field(3, ge=1, le=100)  # SCP rounds per update
+    value_reach_speed: float = Field(1.2, gt=0, le=3)  # [m/s] a goal lies at most this far down V per second left
+    value_finish_radius: float = Field(3.0, ge=0)  # [m] within this of the target, also plan toward it
 
 
 class MirrorPolicyConfig(StrictModel):

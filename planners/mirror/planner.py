@@ -44,6 +44,8 @@ from .plans import Candidate, Plan
 from .qp import MirrorQP
 from .seeds import GuidedSeed, ShapeSeeds
 from .solvers import BranchAndBound, PiqpQP
+from .value import cost_to_go
+from .value_plan import ValuePlanning
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,6 +80,7 @@ class MirrorPlanner:
         self.shape_seeds = ShapeSeeds(geometry, cfg, self.coarse)
         self.guided_seed = GuidedSeed(geometry, cfg, self.coarse)
         self._guide: GuideSearch | None = None  # built by prepare() (the policy: at reset)
+        self._value: ValuePlanning | None = None  # the value mode (cfg.value), built by prepare()
         self.last_stats: PlanStats | None = None  # the latest call's, a failed one's too
 
     @property
@@ -91,12 +94,16 @@ class MirrorPlanner:
         episodes in the same slot (``guide.prepared_search``)."""
         if self._guide is None and self.guided:
             self._guide = prepared_search(self.g)
+        if self._value is None and self.cfg.value:
+            self._value = ValuePlanning(self, cost_to_go(self.g, self.cfg.value_lattice))
 
     # ------------------------------------------------------------------ plan
     def plan(self, state: VehicleState, candidates: list[Candidate] | None = None) -> Plan | None:
         """Best collision-free plan from ``state``, or None.
 
-        Guided (the default): one candidate, from the guide; where the guide finds no path
+        Value mode (``cfg.value``, ``mirror-value``): candidates over first gear and switch,
+        aimed and compared by a cost to go (``value_plan.py``). Guided (the default): one
+        candidate, from the guide; where the guide finds no path
         from a standing car, the unguided multi-start within the fallback budget, on at
         most ``fallback_calls`` calls in a row. Otherwise the candidates given, or both
         gears at two switch steps and without a switch, seeded by their classic shapes.
@@ -105,6 +112,9 @@ class MirrorPlanner:
         t0 = time.perf_counter()
         xi0 = state.as_array()
         start = self.checks.start(xi0)
+        if self.cfg.value and candidates is None:
+            self.prepare()
+            return self._value.plan(state, xi0, start, t0)
         if not self.guided or candidates is not None:
             return self._plan_multistart(state, xi0, start, candidates, t0)
         plan = self._plan_guided(xi0, start, t0)
@@ -115,6 +125,11 @@ class MirrorPlanner:
             budget = (1, self.cfg.fallback_iterations, self.fallback_miqp)
             plan = self._plan_multistart(state, xi0, start, None, t0, *budget)
         return plan
+
+    def guide_search(self, pose):
+        """The guide from ``pose`` (x, y, theta), or None."""
+        self.prepare()
+        return self._guide.search(pose)
 
     def _plan_guided(self, xi0: np.ndarray, start: Start, t0: float) -> Plan | None:
         """One plan along the guide's next switch: seed from tracking the guide, then SCP
@@ -218,14 +233,13 @@ class MirrorPlanner:
         status = "ok" if best is not None else "infeasible"
         if partial is not None and partial.cost < 0.98 * min(stay, best.cost if best else math.inf):
             best, status = partial, "partial"  # no full plan progresses: go as far as is safe
+        detail = {"candidates": tried, "stay_cost": stay, "guided": False, "safety_net": net}
+        return self.finish(t0, status, totals, best.cost if best else math.nan, detail, best)
+
+    def finish(self, t0: float, status: str, totals: dict, cost: float, detail: dict, best: Plan | None):
+        """Record a call's statistics (``last_stats``) and return its plan carrying them."""
         stats = PlanStats(
-            time.perf_counter() - t0,
-            status,
-            totals["iterations"],
-            totals["qp_solves"],
-            totals["nodes"],
-            best.cost if best else math.nan,
-            {"candidates": tried, "stay_cost": stay, "guided": False, "safety_net": net},
+            time.perf_counter() - t0, status, totals["iterations"], totals["qp_solves"], totals["nodes"], cost, detail
         )
         self.last_stats = stats
         return replace(best, stats=stats) if best is not None else None
