@@ -19,9 +19,7 @@ itself comes from the QP toward the mirrored target and is checked exactly befor
 
 from __future__ import annotations
 
-import hashlib
 import math
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +32,7 @@ from ..common import reeds_shepp
 from ..common.clearance import gaps, required_gap
 from ..common.path import Path, arc
 from ..common.reeds_shepp import ReedsShepp
+from ..common.slot_cache import SlotCache
 from .mirror_line import parallel_dark_point
 
 
@@ -66,32 +65,20 @@ class Guide:
         return seg[min(1, len(seg) - 1)][1] if seg else len(self.path.poses) - 1
 
 
-_PREPARED: OrderedDict[str, GuideSearch] = OrderedDict()
-_PREPARED_MAX = 32
+_PREPARED: SlotCache[GuideSearch] = SlotCache(32)
 
 
 def prepared_search(geometry: ScenarioGeometry, config: GuideConfig | None = None) -> GuideSearch:
     """A ``GuideSearch`` with its road tails built, shared by the episodes of one process in
-    the same slot. What it holds depends on the slot, the obstacles, the target and the car
-    alone, never on the start, and nothing changes it once built, so sharing it gives every
-    episode the same plans as building its own (a car that has measured a slot once)."""
+    the same slot (``common.slot_cache``)."""
     cfg = config or GuideConfig()
-    g = geometry
-    h = hashlib.sha256()
-    for a in (g.obstacles.vertices, np.asarray(g.slot, float), np.asarray(g.target, float)):
-        h.update(np.ascontiguousarray(a).tobytes())
-    h.update(repr((g.road_width, g.slot_width, g.parking_type, g.vehicle, cfg.model_dump_json())).encode())
-    key = h.hexdigest()
-    search = _PREPARED.get(key)
-    if search is None:
+
+    def build() -> GuideSearch:
         search = GuideSearch(geometry, cfg)
         search.road_tails()
-        _PREPARED[key] = search
-        if len(_PREPARED) > _PREPARED_MAX:
-            _PREPARED.popitem(last=False)
-    else:
-        _PREPARED.move_to_end(key)
-    return search
+        return search
+
+    return _PREPARED.get(geometry, cfg.model_dump_json(), build)
 
 
 class GuideSearch:

@@ -25,6 +25,7 @@ from mirrorpark_env.scenario import ScenarioGeometry
 
 from ..common.clearance import gaps
 from ..common.path import arc
+from ..common.slot_cache import SlotCache
 
 
 class ValueConfig(StrictModel):
@@ -314,22 +315,10 @@ class CostToGo:
         return poses if len(poses) > 1 else None
 
 
-_CACHE: dict = {}
+_CACHE: SlotCache[CostToGo] = SlotCache(16)
 
 
 def cost_to_go(geometry: ScenarioGeometry, config: ValueConfig | None = None) -> CostToGo:
     """A ``CostToGo`` shared by the episodes of one process in the same slot."""
-    import hashlib
-
     cfg = config or ValueConfig()
-    g = geometry
-    h = hashlib.sha256()
-    for a in (g.obstacles.vertices, np.asarray(g.slot, float), np.asarray(g.target, float)):
-        h.update(np.ascontiguousarray(a).tobytes())
-    h.update(repr((g.road_width, g.bounds, g.vehicle, cfg.model_dump_json())).encode())
-    key = h.hexdigest()
-    if key not in _CACHE:
-        if len(_CACHE) > 16:
-            _CACHE.clear()
-        _CACHE[key] = CostToGo(geometry, cfg)
-    return _CACHE[key]
+    return _CACHE.get(geometry, cfg.model_dump_json(), lambda: CostToGo(geometry, cfg))
