@@ -76,8 +76,16 @@ def available() -> list[str]:
 def make_policy(name: str) -> Policy:
     """A fresh policy for ``name``; raises ``ValueError`` naming the available planners.
 
-    ``rl:PATH`` loads the model file PATH, which unpickles code: name only files you trust.
+    ``rl:PATH`` loads the model file PATH, which unpickles code: name only files you trust;
+    ``rl-shield:PATH`` runs it inside a safety filter (``planners/rl/shield.py``).
     """
+    if name.startswith("rl-shield:"):  # the learner inside a safety filter: a separate row
+        from planners.rl.policy import RLPolicy
+        from planners.rl.shield import Shielded
+
+        if not name[10:].strip():
+            raise ValueError("planner: 'rl-shield:' needs a model file after it, e.g. rl-shield:results/rl/model.zip")
+        return Shielded(RLPolicy(name[10:]))
     if name.startswith("rl:"):
         if not name[3:].strip():
             raise ValueError("planner: 'rl:' needs a model file after it, e.g. rl:results/rl/model.zip")

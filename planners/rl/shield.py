@@ -1,0 +1,90 @@
+"""A safety filter around a learned policy (``rl-shield:PATH``): a separate, named row.
+
+Each step the learner's action is tried on the truth model: one step of it, then the
+brake (``tracker.hold_accel``, steering held) until the car stands still (its speed and
+acceleration die away; a car that only nearly stands creeps on). If a footprint on the
+way comes closer to an obstacle than ``MIN_GAP`` (or, where the car is already closer,
+closer than it is now), the filter brakes instead. It changes what the learner's
+row measures, so it is never folded into ``rl:PATH``: the learner alone stays that row.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from mirrorpark_env.scenario import ScenarioGeometry
+from mirrorpark_env.vehicle import TruthModel, VehicleState, from_action, to_action
+
+from ..base import PlanStats, Policy
+from ..common.clearance import gaps
+from ..common.tracker import hold_accel
+
+MIN_GAP = 0.01  # [m]
+BRAKE_STEPS = 40  # control steps of braking tried at most (4 s at 0.1 s)
+
+
+class Shielded(Policy):
+    """``inner``'s action where one step of it and then the brake stay clear; else the brake."""
+
+    def __init__(self, inner: Policy, dt: float = 0.1):
+        super().__init__()
+        self.inner = inner
+        self.name = f"rl-shield:{inner.name.removeprefix('rl:')}"
+        self.dt = dt
+        self.overrides = 0
+
+    def reset(self, geometry: ScenarioGeometry) -> None:
+        self.inner.reset(geometry)
+        self.g = geometry
+        self.p = geometry.vehicle
+        self.model = TruthModel(self.p, self.dt, 0.01)
+        self.overrides = 0
+
+    def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
+        t0 = time.perf_counter()
+        action = self.inner.act(obs, info)
+        s: VehicleState = info["vehicle_state"]
+        clear = self._clear(s, *from_action(self.p, action))
+        if not clear:
+            self.overrides += 1
+            action = to_action(self.p, hold_accel(self.p, s.v, s.a), s.delta)
+        if self.inner.stats:  # the decision's time includes the filter's; its status says if it overrode
+            last = self.inner.stats[-1]
+            status = last.status if clear else "shielded"
+            self.inner.stats[-1] = PlanStats(time.perf_counter() - t0, status, detail={"learner_status": last.status})
+        return action
+
+    def _clear(self, s: VehicleState, a_cmd: float, d_cmd: float) -> bool:
+        p = self.p
+        state = (s.x, s.y, s.theta, s.v, s.a, s.delta)
+        here = float(gaps(self.g.checker, np.array([state[:3]]), all_axes=True)[0])
+        need = min(MIN_GAP, here)
+        rows = self.model.step_rows(state, a_cmd, d_cmd)
+        poses = [r[:3] for r in rows]
+        x = rows[-1][:6]
+        for _ in range(BRAKE_STEPS):
+            if abs(x[3]) < 1e-3 and abs(x[4]) < 1e-2:
+                break
+            rows = self.model.step_rows(x, hold_accel(p, x[3], x[4]), x[5])
+            poses += [r[:3] for r in rows]
+            x = rows[-1][:6]
+        return bool((gaps(self.g.checker, np.array(poses), all_axes=True) >= need - 1e-12).all())
+
+    @property
+    def stats(self) -> list[PlanStats]:
+        return self.inner.stats
+
+    @stats.setter
+    def stats(self, value: list[PlanStats]) -> None:  # Policy.__init__ sets it
+        pass
+
+    @property
+    def gave_up(self) -> bool:
+        return self.inner.gave_up
+
+    @gave_up.setter
+    def gave_up(self, value: bool) -> None:
+        pass

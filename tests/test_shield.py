@@ -1,0 +1,39 @@
+"""The safety filter around a learned policy (``rl-shield:PATH``), with a stand-in learner."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+
+import mirrorpark_env  # noqa: F401
+from planners.base import PlanStats, Policy, run_episode
+from planners.rl.shield import Shielded
+
+
+class FullLeft(Policy):
+    """A reckless learner: full throttle, full left lock, every step."""
+
+    name = "rl:full-left"
+
+    def reset(self, geometry) -> None:
+        self.stats = []
+
+    def act(self, obs, info) -> np.ndarray:
+        self.stats.append(PlanStats(0.0, "ok"))
+        return np.array([1.0, 1.0], dtype=np.float32)
+
+
+CASE = "reverse_rw5.00_sl4.82_sw2.47_th+0_y2.00"  # the car 2 m from the slot's kerb, 3 m from the far one
+
+
+def test_the_filter_stops_a_reckless_learner_short_of_the_kerb_and_says_so():
+    env = gym.make("MirrorPark-v0").unwrapped
+    info, _ = run_episode(env, FullLeft(), CASE, max_steps=300)
+    assert info["collision"]  # unfiltered, full lock left at full throttle meets the far kerb
+    shield = Shielded(FullLeft())
+    info, _ = run_episode(env, shield, CASE, max_steps=300)
+    assert not info["collision"]
+    assert info["path_length"] > 0.5  # it let the learner drive while that was safe
+    assert shield.overrides > 0
+    assert shield.stats[-1].status == "shielded" and shield.stats[-1].detail["learner_status"] == "ok"
+    assert shield.name == "rl-shield:full-left"
