@@ -126,6 +126,14 @@ class MirrorPlanner:
             plan = self._plan_multistart(state, xi0, start, None, t0, *budget)
         return plan
 
+    def line_from(self, theta: float) -> MirrorLine:
+        """The mirror line for a plan from heading ``theta``: Theorem 1's (parallel), else
+        Eqs. (5), (6) bound by the heading change still to go."""
+        if self.line.fixed:
+            return self.line
+        psi = min(abs(unwrap_near(self.g.target[2], theta) - theta), math.pi / 2)
+        return mirror_line(self.g, psi=psi, margin=self.cfg.mirror_margin)
+
     def guide_search(self, pose):
         """The guide from ``pose`` (x, y, theta), or None."""
         self.prepare()
@@ -200,10 +208,7 @@ class MirrorPlanner:
     ) -> Plan | None:
         """The best plan over the candidates' shape seeds, refined by SCP (budget: ``refine``
         candidates, ``iterations`` rounds each and ``miqp``'s nodes; default the config's)."""
-        line = self.line
-        if not line.fixed:  # Eqs. (5), (6): bound by the heading change still to go
-            psi = min(abs(unwrap_near(self.g.target[2], state.theta) - state.theta), math.pi / 2)
-            line = mirror_line(self.g, psi=psi, margin=self.cfg.mirror_margin)
+        line = self.line_from(state.theta)
         goal = np.array(self.g.target, float)
         theta_t = unwrap_near(goal[2], state.theta)
         seeds = self.shape_seeds.ranked(

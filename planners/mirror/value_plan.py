@@ -27,7 +27,6 @@ from mirrorpark_env.vehicle import VehicleState
 from ..common.path import Path
 from .checks import Start
 from .guide import Guide
-from .mirror_line import mirror_line
 from .plans import Candidate, Plan
 from .value import CostToGo
 
@@ -68,10 +67,7 @@ class ValuePlanning:
 
     def plan(self, state: VehicleState, xi0: np.ndarray, start: Start, t0: float) -> Plan | None:
         pl, cfg, V = self.pl, self.pl.cfg, self.V
-        line = pl.line
-        if not line.fixed:  # Eqs. (5), (6): bound by the heading change still to go
-            psi = min(abs(unwrap_near(pl.g.target[2], state.theta) - state.theta), math.pi / 2)
-            line = mirror_line(pl.g, psi=psi, margin=cfg.mirror_margin)
+        line = pl.line_from(state.theta)
         target = np.array(pl.g.target, float)
         sw, rc = V.cfg.switch_cost, V.cfg.reverse_cost
         prev = self.last_gear if abs(state.v) < 0.05 else (1 if state.v > 0 else -1)
@@ -87,7 +83,7 @@ class ValuePlanning:
             goal = V.descend(pose, last_gear(c), reach * (pl.N - k))
             return target.copy() if goal is None else goal
 
-        picked, fixed = self._warm_starts(state, xi0, line, reach)
+        picked, fixed = self._warm_starts(state, xi0, line, reach), set()  # fixed: aimed at the target
         if math.hypot(xi0[0] - target[0], xi0[1] - target[1]) < cfg.value_finish_radius:
             theta_t = unwrap_near(target[2], state.theta)
             merit = lambda real: pl.checks.merit(real, target, theta_t)  # noqa: E731
@@ -147,7 +143,7 @@ class ValuePlanning:
     def _warm_starts(self, state: VehicleState, xi0: np.ndarray, line, reach: float):
         """(candidate, seed) pairs: V's cheapest way on in each first gear allowed, through
         no switch and through one, tracked; the guide's, where the planner has one; the
-        classic shapes where V is blind. And the set of those aimed at the target (none)."""
+        classic shapes where V is blind."""
         pl, cfg = self.pl, self.pl.cfg
         picked: list[tuple[Candidate, np.ndarray]] = []
         dirs = [1 if state.v > 0 else -1] if abs(state.v) > 0.1 else [1, -1]
@@ -167,4 +163,4 @@ class ValuePlanning:
             ranked = pl.shape_seeds.ranked(xi0, pl.shape_seeds.candidates(state, line), line, self._seed_merit)
             picked = [cs for cs in ranked if cs[0].switch is None]
             picked += [cs for cs in ranked if cs[0].switch is not None][: cfg.value_candidates]
-        return picked, set()
+        return picked
