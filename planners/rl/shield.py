@@ -30,8 +30,7 @@ class Shielded(Policy):
     """``inner``'s action where one step of it and then the brake stay clear; else the brake."""
 
     def __init__(self, inner: Policy, dt: float = 0.1):
-        super().__init__()
-        self.inner = inner
+        self.inner = inner  # its stats and give-up are the filter's (no state of its own)
         self.name = f"rl-shield:{inner.name.removeprefix('rl:')}"
         self.dt = dt
         self.overrides = 0
@@ -77,14 +76,10 @@ class Shielded(Policy):
     def stats(self) -> list[PlanStats]:
         return self.inner.stats
 
-    @stats.setter
-    def stats(self, value: list[PlanStats]) -> None:  # Policy.__init__ sets it
-        pass
-
     @property
     def gave_up(self) -> bool:
         return self.inner.gave_up
 
-    @gave_up.setter
-    def gave_up(self, value: bool) -> None:
-        pass
+    @property
+    def setup_time_s(self) -> float:
+        return getattr(self.inner, "setup_time_s", 0.0)
