@@ -20,9 +20,9 @@ from mirrorpark_env.vehicle import TruthModel, VehicleState, from_action, to_act
 
 from ..base import PlanStats, Policy
 from ..common.clearance import gaps
+from ..common.safety import MIN_GAP  # the tracking policies' stopping check keeps the same gap
 from ..common.tracker import hold_accel
 
-MIN_GAP = 0.01  # [m]
 BRAKE_STEPS = 40  # control steps of braking tried at most (4 s at 0.1 s)
 
 
