@@ -103,11 +103,11 @@ class MirrorPlanner:
 
         Value mode (``cfg.value``, ``mirror-value``): candidates over first gear and switch,
         aimed and compared by a cost to go (``value_plan.py``). Guided (the default): one
-        candidate, from the guide; where the guide finds no path
-        from a standing car, the unguided multi-start within the fallback budget, on at
-        most ``fallback_calls`` calls in a row. Otherwise the candidates given, or both
-        gears at two switch steps and without a switch, seeded by their classic shapes.
-        Statistics of the call, a failed one included, are in ``self.last_stats``.
+        candidate, from the guide; where the guide finds no path from a standing car, the
+        unguided multi-start within the fallback budget, on at most ``fallback_calls``
+        calls in a row. Otherwise the candidates given, or both gears at two switch steps
+        and without a switch, seeded by their classic shapes. Statistics of the call, a
+        failed one included, are in ``self.last_stats``.
         """
         t0 = time.perf_counter()
         xi0 = state.as_array()
