@@ -33,6 +33,7 @@ from ..common.clearance import gaps, required_gap
 from ..common.path import Path, arc
 from ..common.reeds_shepp import ReedsShepp
 from ..common.slot_cache import SlotCache
+from ..common.turns import turn_chains
 from .mirror_line import parallel_dark_point
 
 
@@ -208,29 +209,15 @@ class GuideSearch:
         return arc(pose, kappa, gear * np.arange(0.0, length + 1e-9, self.cfg.sample_step))
 
     def _turn_chains(self, pose, start_gap: float | None, arcs: int) -> list[tuple[np.ndarray, list[int]]]:
-        """Multi-point turns: full-lock arcs in alternating gears that keep turning one way,
-        each driven as far as it stays clear (at most a quarter turn). One chain per turn
-        direction and first gear, with the index of the pose that ends each arc."""
-        k_max = 1.0 / self.rs.radius
-        out = []
-        for turn in (1.0, -1.0):
-            for first_gear in (1.0, -1.0):
-                q, acc, ends = np.asarray(pose, float), [np.asarray(pose, float)[None]], []
-                for n in range(arcs):
-                    gear = first_gear if n % 2 == 0 else -first_gear
-                    arc = self._arc(q, gear, turn * gear * k_max, 0.5 * math.pi * self.rs.radius)
-                    # No relief below the gap: the next arc must start clear by it.
-                    need = self._need(arc, start_gap if n == 0 else None, floor=self.cfg.gap)
-                    bad = np.flatnonzero(self._gaps(arc) < need)
-                    stop = (bad[0] if len(bad) else len(arc)) - 1
-                    if stop < 2:
-                        break
-                    acc.append(arc[1 : stop + 1])
-                    ends.append(sum(len(a) for a in acc) - 1)
-                    q = arc[stop]
-                if ends:
-                    out.append((np.concatenate(acc), ends))
-        return out
+        """Multi-point turns from ``pose`` (``common.turns``), each arc keeping the guide's gap."""
+
+        def first_bad(poses: np.ndarray, n: int) -> int:
+            # No relief below the gap after the first arc: the next arc must start clear by it.
+            need = self._need(poses, start_gap if n == 0 else None, floor=self.cfg.gap)
+            bad = np.flatnonzero(self._gaps(poses) < need)
+            return int(bad[0]) if len(bad) else len(poses)
+
+        return turn_chains(pose, self.rs.radius, self.cfg.sample_step, arcs, first_bad)
 
     def _escape_tails(self, arcs: int = 6, every: float = 1.0) -> list[tuple[np.ndarray, np.ndarray, float]]:
         """Tails that park by back-and-forth arcs inside the slot: multi-point turns out of
