@@ -14,6 +14,7 @@ from mirrorpark_env import Scenario
 from planners.base import run_episode
 from planners.mirror.config import MirrorPlannerConfig
 from planners.mirror.policy import MirrorPolicy
+from planners.common.clearance import gaps
 from planners.mirror.value import CostToGo, ValueConfig
 
 REVERSE = "reverse_rw5.00_sl4.82_sw2.47_th+0_y2.00"  # target (1.235, -3.61), heading +90 deg
@@ -22,30 +23,32 @@ REVERSE = "reverse_rw5.00_sl4.82_sw2.47_th+0_y2.00"  # target (1.235, -3.61), he
 @pytest.fixture(scope="module")
 def reverse_value() -> tuple[CostToGo, np.ndarray]:
     g = Scenario.from_case_id(REVERSE).build()
-    return CostToGo(g), np.array(g.target, float)
+    return CostToGo(g, ValueConfig(in_slot_arcs=0)), np.array(g.target, float)  # moves alone: by hand
 
 
 def test_straight_back_into_a_reverse_slot_costs_its_reversed_length(reverse_value):
-    """1.8 m out along the slot's axis, heading the target's: the car reverses straight in,
-    1.8 m at 1.5 per reversed metre = 2.7; having arrived forward it first switches (+3)."""
+    """Five moves out along the slot's axis, heading the target's: the car reverses
+    straight in, 5 x 0.354 m at 1.5 per reversed metre; having arrived forward it first
+    switches (+3). The exact pose lies in the cell and is the one the cell keeps."""
     V, t = reverse_value
     assert V.at(t)[0] == 0.0
-    out = t + np.array([0.0, 1.8, 0.0])
-    assert V.at(out, -1)[0] == pytest.approx(2.7, abs=1e-9)
-    assert V.at(out, +1)[0] == pytest.approx(5.7, abs=1e-9)
-    assert V.at(out)[0] == pytest.approx(2.7, abs=1e-9)  # at rest: either gear
-    np.testing.assert_allclose(V.descend(out, -1), t, atol=1e-9)  # the way on ends at the target
-    np.testing.assert_allclose(V.descend(out, -1, max_length=0.6), t + [0.0, 1.2, 0.0], atol=1e-9)  # 2 moves of 0.3 m
+    assert V.step == pytest.approx(0.354, abs=1e-3)  # a full-lock move turns one 5 deg cell
+    out = t + np.array([0.0, 5 * V.step, 0.0])
+    assert V.at(out, -1)[0] == pytest.approx(5 * V.step * 1.5, abs=1e-9)
+    assert V.at(out, +1)[0] == pytest.approx(5 * V.step * 1.5 + 3.0, abs=1e-9)
+    assert V.at(out)[0] == pytest.approx(5 * V.step * 1.5, abs=1e-9)  # at rest: either gear
+    np.testing.assert_allclose(V.descend(out, -1), t, atol=1e-5)  # the way on ends at the target
+    two = t + [0.0, 3 * V.step, 0.0]  # after two moves
+    np.testing.assert_allclose(V.descend(out, -1, max_length=2 * V.step + 1e-6), two, atol=1e-5)
 
 
 def test_cost_to_go_is_a_length_and_infinite_inside_an_obstacle(reverse_value):
     V, t = reverse_value
-    v = V.V.min(axis=1)
-    s = np.flatnonzero(np.isfinite(v))
-    ix, iy = s // (V.nh * V.ny), (s // V.nh) % V.ny
-    xy = np.stack([V.pose(i, j, 0)[:2] for i, j in zip(ix, iy)])
+    s, col = np.nonzero(np.isfinite(V.V))
+    xy = V.P[s, col, :2].astype(float)  # the exact pose each node was reached at
     assert len(s) > 10_000
-    assert np.all(v[s] >= np.hypot(*(xy - t[:2]).T) - 1e-9)  # no way is shorter than the straight line
+    assert np.all(V.V[s, col] >= np.hypot(*(xy - t[:2]).T) - 1e-5)  # no way is shorter than the straight line
+    assert np.all(gaps(V.g.checker, V.P[s, col].astype(float), all_axes=True) >= V.cfg.clearance - 1e-6)
     assert V.at(np.array([1.235, -5.5, math.pi / 2]))[0] == math.inf  # behind the slot's back wall
 
 
@@ -60,6 +63,30 @@ def test_policy_path_starts_in_the_gear_asked_and_changes_gear_as_allowed(revers
             np.testing.assert_allclose(poses[0], start)
             assert along[0] == gear
             assert np.count_nonzero(along[1:] != along[:-1]) <= changes
+
+
+TIGHT = "parallel_rw4.50_sl4.52_sw2.50_th-30_y3.30"  # a 3.82 m car, a 4.52 m slot
+
+
+def test_in_slot_turns_reach_a_tight_parallel_slot_that_the_moves_alone_do_not():
+    """The lattice's 0.3 m moves cannot shuffle out of a slot 0.7 m longer than the car;
+    the exact multi-point turns out of it make V finite at the start, and V's way on from
+    there is a drivable chain of exact poses that keeps the clearance and ends at the target."""
+    g = Scenario.from_case_id(TIGHT).build()
+    start = np.array([g.start.x, g.start.y, g.start.theta])
+    assert CostToGo(g, ValueConfig(in_slot_arcs=0)).at(start)[0] == math.inf
+    V = CostToGo(g)
+    v, s = V.at(start)
+    assert math.isfinite(v)
+    way = V.way_on(s, int(np.argmin(V.V[s])))
+    poses = np.array([q for q, _ in way])
+    gears = np.array([gr for _, gr in way[1:]])
+    np.testing.assert_allclose(poses[-1], g.target, atol=1e-6)
+    assert np.all(gaps(g.checker, poses, all_axes=True) >= V.cfg.clearance - 1e-6)
+    assert np.count_nonzero(gears[1:] != gears[:-1]) >= 4  # a multi-point turn: several switches
+    # Each step of the way is one exact move (a full-lock arc or straight) or a short tail step.
+    d = np.hypot(*np.diff(poses[:, :2], axis=0).T)
+    assert np.all(d <= V.step + 1e-5)
 
 
 def test_a_bad_lattice_setting_is_refused_by_name():

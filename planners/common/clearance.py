@@ -24,14 +24,19 @@ START_SLACK = 0.0005  # [m] ... less this much
 _FAST: weakref.WeakKeyDictionary[FootprintChecker, FastGaps] = weakref.WeakKeyDictionary()
 
 
+def gap_kernel(checker: FootprintChecker) -> FastGaps:
+    """The compiled gap kernel of ``checker`` (its ``args`` feed other compiled loops)."""
+    fast = _FAST.get(checker)
+    if fast is None:
+        fast = _FAST[checker] = FastGaps(checker)
+    return fast
+
+
 def gaps(checker: FootprintChecker, poses: np.ndarray, all_axes: bool = False) -> np.ndarray:
     """Lower bound on each pose's distance to the nearest obstacle (< 0: overlap): the
     negated ``checker.penetration(...).max(axis=1)``, bit for bit, from a compiled kernel;
     ``all_axes``: the tighter bound of ``kernels.FastGaps``, independent of the batch."""
-    fast = _FAST.get(checker)
-    if fast is None:
-        fast = _FAST[checker] = FastGaps(checker)
-    return fast(poses, all_axes)
+    return gap_kernel(checker)(poses, all_axes)
 
 
 def required_gap(

@@ -23,9 +23,11 @@ from pydantic import Field
 from mirrorpark_env.config import StrictModel
 from mirrorpark_env.scenario import ScenarioGeometry
 
-from ..common.clearance import gaps
+from ..common.clearance import gap_kernel, gaps
+from ..common.kernels import _gaps
 from ..common.path import arc
 from ..common.slot_cache import SlotCache
+from ..common.turns import turn_chains
 
 
 class ValueConfig(StrictModel):
@@ -36,8 +38,13 @@ class ValueConfig(StrictModel):
     steer_fraction: float = Field(0.9, gt=0, le=1)  # moves turn at this fraction of the curvature limit
     clearance: float = Field(0.05, ge=0, le=1)  # gap every lattice pose and move midpoint keeps
     reverse_cost: float = Field(0.5, ge=0)  # extra per metre reversed
+    steer_cost: float = Field(0.05, ge=0)  # extra per metre at full lock: straight wins ties, no needless S-bends
     switch_cost: float = Field(3.0, ge=0)  # per direction switch
     margin: float = Field(10.0, gt=0, le=50)  # [m] along the road beyond the slot
+    # Exact multi-point turns out of the slot from the target (arcs per turn, 0: none): V's
+    # sources besides the target, where a tight slot is finer than the lattice.
+    in_slot_arcs: int = Field(12, ge=0, le=100)
+    tail_step: float = Field(0.02, gt=0, le=1)  # [m] spacing of their poses (an arc ends where it would touch)
     # Near the target, where the cells are too coarse to rank poses: the pose error priced
     # in metres of driving (per m, per rad), at most this much above V.
     finish_position: float = Field(50.0, ge=0)
@@ -83,62 +90,100 @@ def _pop(hk, hv, n):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _dijkstra(valid, mid_ok, off, dih, cost, gear, nx, ny, nh, target, switch_cost):  # pragma: no cover
-    """Backward Dijkstra from ``target`` over nodes (state, gear the car arrived in).
+def _arc_pt(x, y, th, kappa, s):  # pragma: no cover - compiled
+    """The pose a signed arc length ``s`` along curvature ``kappa`` from (x, y, th)."""
+    t = th + kappa * s
+    if kappa != 0.0:
+        return x + (math.sin(t) - math.sin(th)) / kappa, y - (math.cos(t) - math.cos(th)) / kappa, t
+    return x + s * math.cos(th), y + s * math.sin(th), t
 
-    valid: (S,) states; mid_ok: (S, P) moves clear at their midpoint; off: (nh, P, 2) cell
-    offsets of each move by heading; dih: (P,) heading-cell change; cost: (nh, P) by the
-    heading it starts from; gear: (P,).
-    Returns V (S, 2): cost to go after arriving in gear -1 (col 0) or +1 (col 1), and the
-    largest heap the search held (past ``cap`` entries would be lost: the caller checks).
+
+@njit(cache=True)
+def _search(
+    kappa, gear, cost, step, grid, sources, source_pose, source_v, switch_cost, clearance, gap_args
+):  # pragma: no cover - compiled
+    """Backward Dijkstra over nodes (cell, gear the car arrived in), each holding the exact
+    pose it was reached at (hybrid A*'s rule: a cell keeps its cheapest pose).
+
+    A node's predecessors are the poses from which one move (curvature ``kappa[p]``, gear
+    ``gear[p]``, length ``step``, priced ``cost[p]``) ends exactly at its pose; one is kept
+    if it and the move's midpoint keep ``clearance`` from the obstacles. ``grid``: (res,
+    dth, x0, y0, th0, i0, j0, nx, ny, nh). Returns V (S, 2) by arrival gear (0: reverse,
+    1: forward), the poses (S, 2, 3), each node's successor node (2 s + g; -1: a source)
+    and the largest heap the search held.
     """
+    res, dth, x0, y0, th0 = grid[0], grid[1], grid[2], grid[3], grid[4]
+    i0, j0, nx, ny, nh = int(grid[5]), int(grid[6]), int(grid[7]), int(grid[8]), int(grid[9])
+    front, rear, hw, normals, pmin, pmax, verts = gap_args
     S = nx * ny * nh
     V = np.full((S, 2), np.inf)
-    cap = S + 16
+    P = np.zeros((S, 2, 3), np.float32)
+    nxt = np.full((S, 2), -1, np.int32)
+    cap = 2 * S + 2 * sources.shape[0] + 16
     hk = np.empty(cap)
     hv = np.empty(cap, dtype=np.int64)
     n, peak = 0, 0
-    for gi in range(2):
-        V[target, gi] = 0.0
-        n = _push(hk, hv, n, 0.0, target * 2 + gi)
+    for k in range(sources.shape[0]):
+        for gi in range(2):
+            if source_v[k, gi] < V[sources[k], gi]:
+                V[sources[k], gi] = source_v[k, gi]
+                P[sources[k], gi] = source_pose[k]
+                n = _push(hk, hv, n, source_v[k, gi], sources[k] * 2 + gi)
+    two = np.empty((2, 3))
     while n > 0:
         key, node, n = _pop(hk, hv, n)
         s2, g2 = node // 2, node % 2
         if key > V[s2, g2]:
             continue  # a stale entry
-        ih2, iy2, ix2 = s2 % nh, (s2 // nh) % ny, s2 // (nh * ny)
-        for p in range(cost.shape[1]):
+        px, py, pth = float(P[s2, g2, 0]), float(P[s2, g2, 1]), float(P[s2, g2, 2])
+        for p in range(kappa.shape[0]):
             if (gear[p] > 0) != (g2 == 1):
-                continue  # p arrives at s2 in its own gear
-            ih = (ih2 - dih[p]) % nh
-            ix, iy = ix2 - off[ih, p, 0], iy2 - off[ih, p, 1]
+                continue  # p arrives at the node in its own gear
+            k0 = key + cost[p]
+            qx, qy, qth = _arc_pt(px, py, pth, kappa[p], -gear[p] * step)
+            ix = int(math.floor((qx - x0) / res + 0.5)) - i0
+            iy = int(math.floor((qy - y0) / res + 0.5)) - j0
             if ix < 0 or ix >= nx or iy < 0 or iy >= ny:
                 continue
+            ih = int(math.floor((qth - th0) / dth + 0.5)) % nh
             s = (ix * ny + iy) * nh + ih
-            if not valid[s] or not mid_ok[s, p]:
+            if k0 >= V[s, 0] and k0 >= V[s, 1]:
+                continue  # no improvement possible: skip the check
+            mx, my, mth = _arc_pt(px, py, pth, kappa[p], -0.5 * gear[p] * step)
+            two[0, 0], two[0, 1], two[0, 2] = qx, qy, qth
+            two[1, 0], two[1, 1], two[1, 2] = mx, my, mth
+            gp_ = _gaps(two, front, rear, hw, normals, pmin, pmax, verts, True)
+            if gp_[0] < clearance or gp_[1] < clearance:
                 continue
-            for gp in range(2):  # the gear the car arrived at s in: a switch if not p's
-                k = key + cost[ih, p] + (switch_cost if gp != g2 else 0.0)
+            for gp in range(2):  # the gear the car arrived at q in: a switch if not p's
+                k = k0 + (switch_cost if gp != g2 else 0.0)
                 if k < V[s, gp]:
                     V[s, gp] = k
+                    P[s, gp, 0], P[s, gp, 1], P[s, gp, 2] = qx, qy, qth
+                    nxt[s, gp] = node
                     if n >= cap:
                         peak = cap + 1
                         continue
                     n = _push(hk, hv, n, k, s * 2 + gp)
                     peak = max(peak, n)
-    return V, peak
+    return V, P, nxt, peak
 
 
 class CostToGo:
-    """V over a lattice aligned on the target (the target is a lattice pose, V = 0 there)."""
+    """V over cells aligned on the target, each holding the exact pose it was reached at.
+
+    The target and the poses of exact multi-point turns out of the slot are the sources: a
+    tight slot is finer than any affordable lattice. From any cell, following its successors
+    replays exact moves (and then an exact in-slot tail) to the target: V's way on is a
+    drivable path, not a chain of snapped cells.
+    """
 
     def __init__(self, geometry: ScenarioGeometry, config: ValueConfig | None = None):
         self.g = geometry
         self.cfg = cfg = config or ValueConfig()
-        p = geometry.vehicle
         res, nh = cfg.xy_resolution, cfg.headings
         self.dth = 2 * math.pi / nh
-        radius = p.r_min / cfg.steer_fraction
+        self.radius = radius = geometry.vehicle.r_min / cfg.steer_fraction
         self.step = radius * self.dth  # a full-lock move turns one heading cell
         tx, ty, tth = (float(v) for v in geometry.target)
         self.origin = (tx, ty, tth)
@@ -153,80 +198,100 @@ class CostToGo:
         self.nx = math.floor((x1 - tx) / res) - self.i0 + 1
         self.ny = math.floor((y1 - ty) / res) - self.j0 + 1
         self.nh = nh
-        xs = tx + (self.i0 + np.arange(self.nx)) * res
-        ys = ty + (self.j0 + np.arange(self.ny)) * res
-        ths = tth + np.arange(nh) * self.dth
-        X, Y, T = np.meshgrid(xs, ys, ths, indexing="ij")
-        poses = np.stack([X.ravel(), Y.ravel(), T.ravel()], axis=1)
-        checker = geometry.checker
-        valid = gaps(checker, poses, all_axes=True) >= cfg.clearance
-        # Moves: (gear, curvature) with the same offsets from every cell of a heading.
+        # Moves (gear, curvature): straight first, so that it wins ties.
         k = 1.0 / radius
-        moves = [(gr, kk) for gr in (1.0, -1.0) for kk in (0.0, k, -k)]  # straight first: it wins ties
-        P = len(moves)
-        off = np.zeros((nh, P, 2), np.int64)
-        dih = np.zeros(P, np.int64)
-        chord = np.zeros((nh, P))  # the snapped move's length
-        cost = np.zeros((nh, P))  # ... reversing dearer: V is a length
-        gear = np.zeros(P, np.int64)
-        mid_ok = np.zeros((len(poses), P), np.bool_)
-        for m, (gr, kk) in enumerate(moves):
-            dih[m] = int(round(gr * kk * self.step / self.dth))
-            gear[m] = int(gr)
-            for h in range(nh):
-                end = arc((0.0, 0.0, ths[h]), kk, np.array([gr * self.step]))[0]
-                off[h, m] = (round(end[0] / res), round(end[1] / res))
-                chord[h, m] = max(res * math.hypot(*off[h, m]), 0.5 * res)
-                cost[h, m] = chord[h, m] * (1.0 + (cfg.reverse_cost if gr < 0 else 0.0))
-            mids = np.empty_like(poses)
-            for h in range(nh):
-                d = arc((0.0, 0.0, ths[h]), kk, np.array([0.5 * gr * self.step]))[0]
-                sel = slice(h, None, nh)
-                mids[sel, 0] = poses[sel, 0] + d[0]
-                mids[sel, 1] = poses[sel, 1] + d[1]
-                mids[sel, 2] = d[2]
-            todo = np.flatnonzero(valid)
-            mid_ok[todo, m] = gaps(checker, mids[todo], all_axes=True) >= cfg.clearance
-        target = ((-self.i0) * self.ny + (-self.j0)) * nh
-        valid[target] = True  # the target itself (the planner's exact checks judge it)
-        self.valid, self.mid_ok, self.off, self.dih, self.cost, self.gear = valid, mid_ok, off, dih, cost, gear
-        self.chord = chord
-        self.target_state = target
-        self.V, peak = _dijkstra(valid, mid_ok, off, dih, cost, gear, self.nx, self.ny, nh, target, cfg.switch_cost)
-        if peak > valid.size + 16:  # never seen; a wrong V would be silent, so say so
+        moves = [(gr, kk) for gr in (1.0, -1.0) for kk in (0.0, k, -k)]
+        self.kappa = np.array([kk for _, kk in moves])
+        self.gear = np.array([int(gr) for gr, _ in moves], np.int64)
+        self.cost = self.step * np.array(
+            [1.0 + (cfg.reverse_cost if gr < 0 else 0.0) + (cfg.steer_cost if kk else 0.0) for gr, kk in moves]
+        )
+        self.target_state = self._state(-self.i0, -self.j0, 0)
+        self.tails: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # state -> tail (``_in_slot``)
+        sources, source_pose, source_v = self._in_slot()
+        grid = np.array([res, self.dth, tx, ty, tth, self.i0, self.j0, self.nx, self.ny, nh], float)
+        fast = gap_kernel(geometry.checker)
+        self.V, self.P, self.next, peak = _search(
+            self.kappa, self.gear, self.cost, self.step, grid, sources, source_pose, source_v,
+            cfg.switch_cost, cfg.clearance, fast.args,
+        )  # fmt: skip
+        if peak > 2 * self.V.shape[0] + 2 * len(sources) + 16:  # never seen; a wrong V would be silent
             raise RuntimeError(f"CostToGo: the search's heap overflowed ({peak} entries)")
         self.heap_peak = int(peak)
 
+    def _in_slot(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """V's sources: the target, and the poses of exact multi-point turns out of the slot
+        from the target (each arc driven until it would come within ``clearance``), at the
+        cost of driving the turn back in; the cheapest in each cell. Each cell keeps its
+        tail: poses to the target, the gear of each step and the cost to go from each."""
+        cfg = self.cfg
+        best: dict[int, tuple[float, np.ndarray | None, np.ndarray | None, np.ndarray | None]] = {
+            self.target_state: (0.0, np.array([self.origin]), None, None)
+        }
+        if cfg.in_slot_arcs:
+            checker = self.g.checker
+
+            def first_bad(poses: np.ndarray, n: int) -> int:
+                bad = np.flatnonzero(gaps(checker, poses, all_axes=True) < cfg.clearance)
+                return int(bad[0]) if len(bad) else len(poses)
+
+            for chain, ends in turn_chains(self.origin, self.radius, cfg.tail_step, cfg.in_slot_arcs, first_bad):
+                ds = np.hypot(*np.diff(chain[:, :2], axis=0).T)
+                arc_of = np.searchsorted(np.asarray(ends), np.arange(1, len(chain)))  # arc of the step to pose j + 1
+                out_gear = np.where(arc_of % 2 == 0, 1.0, -1.0) * _first_gear(chain)
+                park = -out_gear  # the gear driven back in
+                step = ds * np.where(park < 0, 1.0 + cfg.reverse_cost, 1.0)
+                cum = np.concatenate([[0.0], np.cumsum(step)]) + cfg.switch_cost * np.concatenate([[0], arc_of])
+                gears = np.concatenate([[park[0]], park])  # gears[m]: of the step from pose m back to m - 1
+                i, j, h, inside = self.index(chain)
+                for m in range(1, len(chain)):
+                    st = self._state(i[m], j[m], h[m])
+                    if inside[m] and cum[m] < best.get(st, (math.inf,))[0]:
+                        best[st] = (float(cum[m]), chain[m::-1], gears[m:0:-1], cum[m::-1])
+        states = np.array(list(best), np.int64)
+        poses = np.array([best[int(st)][1][0] for st in states], float)
+        vals = np.zeros((len(states), 2))
+        for n, st in enumerate(states):
+            c, tail, gears, cum = best[int(st)]
+            if gears is None:
+                continue
+            first = gears[0]  # arrived in the other gear, the car first switches
+            vals[n] = [c + (cfg.switch_cost if first > 0 else 0.0), c + (cfg.switch_cost if first < 0 else 0.0)]
+            self.tails[int(st)] = (tail, gears, cum)
+        return states, poses, vals
+
+    # -- cells ------------------------------------------------------------------------
     def index(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Nearest lattice cell (i, j, h) of each pose, and whether it lies in the lattice."""
+        """Cell (i, j, h) of each pose, and whether it lies in the grid (as ``_search``)."""
         poses = np.atleast_2d(np.asarray(poses, float))
         res = self.cfg.xy_resolution
         tx, ty, tth = self.origin
-        i = np.rint((poses[:, 0] - tx) / res).astype(np.int64) - self.i0
-        j = np.rint((poses[:, 1] - ty) / res).astype(np.int64) - self.j0
-        h = np.rint((poses[:, 2] - tth) / self.dth).astype(np.int64) % self.nh
+        i = np.floor((poses[:, 0] - tx) / res + 0.5).astype(np.int64) - self.i0
+        j = np.floor((poses[:, 1] - ty) / res + 0.5).astype(np.int64) - self.j0
+        h = np.floor((poses[:, 2] - tth) / self.dth + 0.5).astype(np.int64) % self.nh
         inside = (i >= 0) & (i < self.nx) & (j >= 0) & (j < self.ny)
         return np.clip(i, 0, self.nx - 1), np.clip(j, 0, self.ny - 1), h, inside
 
     def pose(self, i: int, j: int, h: int) -> np.ndarray:
+        """The centre of cell (i, j, h)."""
         res = self.cfg.xy_resolution
         tx, ty, tth = self.origin
         return np.array([tx + (self.i0 + i) * res, ty + (self.j0 + j) * res, tth + h * self.dth])
 
-    # -- lookups used by the planner ------------------------------------------------------
     def _state(self, i, j, h) -> int:
         return int((i * self.ny + j) * self.nh + h)
 
     def at(self, pose, gear: int | None = None) -> tuple[float, int]:
         """(V, state) at ``pose`` having arrived in ``gear`` (+1, -1; None: at rest, either):
-        the lowest over the lattice neighbours (one cell each way)."""
+        its own cell's, or where that is unreached, the lowest of its neighbours (one cell
+        each way)."""
         i, j, h, inside = self.index(np.asarray(pose, float)[None, :3])
         if not inside[0]:
             return math.inf, -1
         cols = [0, 1] if gear is None else [1 if gear > 0 else 0]
         s0 = self._state(int(i[0]), int(j[0]), int(h[0]))
         v0 = min(self.V[s0, c] for c in cols)
-        if math.isfinite(v0):  # the pose's own cell; its neighbours only where that is blocked
+        if math.isfinite(v0):
             return v0, s0
         best, arg = math.inf, -1
         for di in (0, -1, 1):
@@ -241,81 +306,111 @@ class CostToGo:
                         best, arg = v, s
         return best, arg
 
-    def _cell(self, s: int) -> tuple[int, int, int]:
-        return s // (self.nh * self.ny), (s // self.nh) % self.ny, s % self.nh
+    def _col(self, s: int, gear: int | None) -> int:
+        """The arrival gear's column at ``s`` (None: the cheaper)."""
+        if gear is None:
+            return int(np.argmin(self.V[s]))
+        return 1 if gear > 0 else 0
 
-    def _best_move(self, s: int, g: int, only: int | None = None) -> tuple[float, int, int]:
-        """V's choice at state ``s`` arrived in gear index ``g`` (0: reverse, 1: forward):
-        (value, next state, move), moves restricted to gear index ``only`` if given."""
-        ix, iy, ih = self._cell(s)
-        best, nxt, mv = math.inf, -1, -1
-        for p in range(self.cost.shape[1]):
-            gp = 1 if self.gear[p] > 0 else 0
-            if only is not None and gp != only:
-                continue
-            ii, jj = ix + self.off[ih, p, 0], iy + self.off[ih, p, 1]
-            if not (0 <= ii < self.nx and 0 <= jj < self.ny) or not self.mid_ok[s, p]:
-                continue
-            s2 = self._state(ii, jj, (ih + self.dih[p]) % self.nh)
-            if not self.valid[s2]:
-                continue
-            val = self.cost[ih, p] + (self.cfg.switch_cost if gp != g else 0.0) + self.V[s2, gp]
-            if val < best:
-                best, nxt, mv = val, s2, p
-        return best, nxt, mv
+    # -- V's way on ---------------------------------------------------------------------
+    def way_on(self, s: int, g: int) -> list[tuple[np.ndarray, float]]:
+        """V's cheapest way on from node (state ``s``, arrival column ``g``): the exact poses
+        (the node's own first) and the gear of the step to each, to the target."""
+        out: list[tuple[np.ndarray, float]] = [(self.P[s, g].astype(float), 0.0)]
+        node = s * 2 + g
+        while True:
+            st, col = node // 2, node % 2
+            nxt = int(self.next[st, col])
+            if nxt < 0:  # a source: the target, or an in-slot tail
+                tail = self.tails.get(st)
+                if tail is not None:
+                    poses, gears, _ = tail
+                    out += [(poses[m + 1], float(gears[m])) for m in range(len(poses) - 1)]
+                return out
+            out.append((self.P[nxt // 2, nxt % 2].astype(float), 1.0 if nxt % 2 else -1.0))
+            node = nxt
 
     def descend(self, pose, gear: int, max_length: float = math.inf) -> np.ndarray | None:
-        """The lattice pose where V's cheapest way on from ``pose`` (arrived in ``gear``)
-        first changes gear, reaches the target or has run ``max_length`` metres. None where
-        V is infinite."""
+        """The exact pose where V's cheapest way on from ``pose`` (arrived in ``gear``) first
+        changes gear, reaches the target or has run ``max_length`` metres. None where V is
+        infinite."""
         v, s = self.at(pose, gear)
         if not math.isfinite(v):
             return None
-        g = 1 if gear > 0 else 0
-        length = 0.0
-        while s != self.target_state:
-            best, nxt, mv = self._best_move(s, g)
-            if nxt < 0 or (1 if self.gear[mv] > 0 else 0) != g:
+        way = self.way_on(s, self._col(s, gear))
+        g, length, last = (1.0 if gear > 0 else -1.0), 0.0, way[0][0]
+        for q, gr in way[1:]:
+            length += math.hypot(q[0] - last[0], q[1] - last[1])
+            if gr != g or length > max_length + 1e-9:
                 break
-            length += self.chord[s % self.nh, mv]
-            if length > max_length + 1e-9:
-                break
-            s = nxt
-        return self.pose(*self._cell(s))
+            last = q
+        return last.copy()
 
     def policy_path(
         self, pose, first_gear: int, changes: int, max_length: float, sample_step: float = 0.1
     ) -> np.ndarray | None:
-        """Poses along V's cheapest way on from ``pose``, first in ``first_gear``, through at
-        most ``changes`` gear changes and ``max_length`` metres: its moves replayed from the
-        pose itself (a warm start for a plan; None where V is infinite)."""
-        v, s = self.at(pose, None)
-        if not math.isfinite(v):
+        """Poses from ``pose`` along V's cheapest way on that starts in ``first_gear``: one
+        exact move from the pose itself, then the way on from where it lands, through at
+        most ``changes`` gear changes and ``max_length`` metres (a warm start for a plan;
+        None where no move in that gear reaches a finite V)."""
+        pose = np.asarray(pose, float)[:3]
+        g = 1.0 if first_gear > 0 else -1.0
+        col = 1 if g > 0 else 0
+        best, pick = math.inf, None
+        for p in np.flatnonzero(self.gear == int(g)):
+            q = arc(pose, self.kappa[p], np.array([0.5 * g * self.step, g * self.step]))
+            if np.any(gaps(self.g.checker, q, all_axes=True) < min(self.cfg.clearance, self._gap(pose))):
+                continue
+            v, s = self.at(q[1], int(g))
+            if v + self.cost[p] < best:
+                best, pick = v + self.cost[p], (p, s)
+        if pick is None:
             return None
-        g = 1 if first_gear > 0 else 0
-        out = [np.asarray(pose, float)[None, :3]]
+        p, s = pick
         m = max(1, round(self.step / sample_step))
-        length, n_changes, first = 0.0, 0, True
-        while length + 1e-9 < max_length and s != self.target_state:
-            best, nxt, mv = self._best_move(s, g, g if first else None)
-            if nxt < 0 or not math.isfinite(best):
-                break
-            gp = 1 if self.gear[mv] > 0 else 0
-            if gp != g and not first:
-                n_changes += 1
-                if n_changes > changes:
+        out = [pose[None], arc(pose, self.kappa[p], g * self.step * np.arange(1, m + 1) / m)]
+        length, cur = self.step, g
+        way = self.way_on(s, col)
+        last = out[-1][-1]
+        for q, gr in way[1:]:
+            if gr != cur:
+                changes -= 1
+                if changes < 0:
                     break
-            first, g = False, gp
-            kappa = self.dih[mv] * self.dth / self.step * self.gear[mv]
-            seg = arc(out[-1][-1], kappa, self.gear[mv] * self.step * np.arange(1, m + 1) / m)
-            out.append(seg)
-            length += self.chord[s % self.nh, mv]
-            s = nxt
+                cur = gr
+            length += math.hypot(q[0] - last[0], q[1] - last[1])
+            if length > max_length + 1e-9:
+                break
+            out.append(_between(last, q, gr, sample_step))
+            last = q
         poses = np.concatenate(out)
         return poses if len(poses) > 1 else None
 
+    def _gap(self, pose: np.ndarray) -> float:
+        return float(gaps(self.g.checker, np.asarray(pose, float)[None, :3], all_axes=True)[0])
 
-_CACHE: SlotCache[CostToGo] = SlotCache(16)
+
+def _first_gear(chain: np.ndarray) -> float:
+    """The gear a chain leaves its first pose in (sign of the motion along the heading)."""
+    d = chain[1, :2] - chain[0, :2]
+    return 1.0 if d[0] * math.cos(chain[0, 2]) + d[1] * math.sin(chain[0, 2]) >= 0 else -1.0
+
+
+def _between(a: np.ndarray, b: np.ndarray, gear: float, sample_step: float) -> np.ndarray:
+    """Poses after ``a`` up to ``b`` along the arc from ``a`` through ``b`` (or the straight
+    line), about ``sample_step`` apart: one move of V's way on, or a tail step, resampled."""
+    d = math.hypot(b[0] - a[0], b[1] - a[1])
+    n = max(1, math.ceil(d / sample_step - 1e-9))
+    dth = float(b[2] - a[2])
+    if abs(dth) < 1e-9 or d < 1e-12:
+        t = np.arange(1, n + 1) / n
+        return np.stack([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), np.full(n, b[2])], axis=1)
+    s = gear * d * (0.5 * dth) / math.sin(0.5 * dth) if abs(math.sin(0.5 * dth)) > 1e-12 else gear * d
+    kappa = dth / s
+    return arc(a, kappa, s * np.arange(1, n + 1) / n)
+
+
+_CACHE: SlotCache[CostToGo] = SlotCache(8)
 
 
 def cost_to_go(geometry: ScenarioGeometry, config: ValueConfig | None = None) -> CostToGo:
