@@ -12,9 +12,9 @@ from pydantic import ValidationError
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario
 from planners.base import run_episode
+from planners.common.clearance import gaps
 from planners.mirror.config import MirrorPlannerConfig
 from planners.mirror.policy import MirrorPolicy
-from planners.common.clearance import gaps
 from planners.mirror.value import CostToGo, ValueConfig
 
 REVERSE = "reverse_rw5.00_sl4.82_sw2.47_th+0_y2.00"  # target (1.235, -3.61), heading +90 deg
