@@ -73,6 +73,7 @@ class MirrorPlanner:
         self.qp_backend = PiqpQP(e, 0.1 * e, kkt_solver=cfg.kkt_solver, eps_gap=(e, 0.1 * e))
         self.miqp = BranchAndBound(self.qp_backend, cfg.node_limit, cfg.time_limit_s)
         self.fallback_miqp = BranchAndBound(self.qp_backend, cfg.fallback_node_limit, cfg.time_limit_s)
+        self.scout_miqp = BranchAndBound(self.qp_backend, cfg.value_scout_node_limit, cfg.time_limit_s)
         self._fallbacks = 0  # calls in a row that fell back on the unguided multi-start
         self.line = mirror_line(geometry, margin=cfg.mirror_margin)
         self.qp = MirrorQP(self.p, cfg, ObstacleRows(geometry, cfg.obstacle_margin, cfg.horizon, cfg.model_substeps))

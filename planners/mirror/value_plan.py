@@ -66,71 +66,45 @@ class ValuePlanning:
         return v + min(max(e - v, 0.0), c.finish_cap)
 
     def plan(self, state: VehicleState, xi0: np.ndarray, start: Start, t0: float) -> Plan | None:
-        pl, cfg, V = self.pl, self.pl.cfg, self.V
+        pl, cfg = self.pl, self.pl.cfg
         line = pl.line_from(state.theta)
-        target = np.array(pl.g.target, float)
-        sw, rc = V.cfg.switch_cost, V.cfg.reverse_cost
         prev = self.last_gear if abs(state.v) < 0.05 else (1 if state.v > 0 else -1)
-        reach = cfg.value_reach_speed * cfg.dt  # [m] per step of horizon left
-
-        def score(real: np.ndarray, c: Candidate) -> float:
-            switches = (c.switch is not None) + (prev != 0 and c.direction != prev)
-            return driven_cost(real, rc) + sw * switches + self.cost_to_go(real[-1, :3], last_gear(c))
-
-        def aim(real: np.ndarray, c: Candidate) -> np.ndarray:
-            k = 0 if c.switch is None else c.switch
-            pose = real[k * cfg.model_substeps, :3] if len(real) > pl.N + 1 else real[k, :3]
-            goal = V.descend(pose, last_gear(c), reach * (pl.N - k))
-            return target.copy() if goal is None else goal
-
-        picked, fixed = self._warm_starts(state, xi0, line, reach), set()  # fixed: aimed at the target
+        call = _Call(self, xi0, start, line, prev)
+        picked, fixed = self._warm_starts(state, xi0, line, call.reach), set()  # fixed: aimed at the target
+        target = call.target
         if math.hypot(xi0[0] - target[0], xi0[1] - target[1]) < cfg.value_finish_radius:
             theta_t = unwrap_near(target[2], state.theta)
             merit = lambda real: pl.checks.merit(real, target, theta_t)  # noqa: E731
             for cs in pl.shape_seeds.ranked(xi0, pl.shape_seeds.candidates(state, line), line, merit)[:2]:
                 fixed.add(len(picked))
                 picked.append(cs)
-        best, best_j, partial = None, math.inf, None
-        totals = {"iterations": 0, "qp_solves": 0, "nodes": 0}
-        tried, net = [], False
-        for n, (cand, seed) in enumerate(picked):
-            goal = target.copy() if n in fixed else aim(seed, cand)
-            natural = cand.direction == pl.shape_seeds.first_direction
-            for _ in range(1 if n in fixed else cfg.value_updates):
-                plan, st = pl.solve_candidate(
-                    xi0, cand, goal, start, line, seed, iterations=cfg.value_iterations, band=natural
-                )
-                for k in totals:
-                    totals[k] += st[k]
-                net = net or st.get("safety_net", False)
-                if st.get("partial") is not None and (partial is None or st["partial"].cost < partial.cost):
-                    partial = st["partial"]
-                if plan is None:
-                    tried.append((cand, None, st["status"], tuple(np.round(goal, 3))))
-                    break
-                moved = float(np.abs(plan.states[:, 3]).sum()) * cfg.dt
-                j = score(plan.states, cand) if moved > 0.05 else math.inf  # standing is no plan
-                tried.append((cand, round(j, 3), st["status"], tuple(np.round(goal, 3))))
+        # Scouting: every candidate solved once, branch and bound on a small budget; then
+        # the leader alone is refined (its goal moved down V from its optimised plan, on the
+        # full budget). Where no candidate gives a plan, each is solved on the full budget.
+        goals = [target.copy() if n in fixed else call.aim(seed, cand) for n, (cand, seed) in enumerate(picked)]
+        best, best_j, lead = None, math.inf, -1
+        for miqp in (pl.scout_miqp, pl.miqp):
+            for n, (cand, seed) in enumerate(picked):
+                j, plan = call.solve(cand, goals[n], seed, miqp)
                 if j < best_j:
-                    best, best_j = plan, j
-                new = aim(plan.states, cand)
-                if np.hypot(*(new[:2] - goal[:2])) < 0.05 and abs(new[2] - goal[2]) % (2 * math.pi) < 0.02:
-                    break
-                goal = new
-                seed = np.concatenate([xi0[None], pl.coarse.rollout(xi0, plan.commands)[:, :6]])
+                    best, best_j, lead = plan, j, n
+            if best is not None:
+                break
+        if best is not None and lead not in fixed:
+            best, best_j = call.refine(best, best_j, goals[lead])
         status = "ok" if best is not None else "infeasible"
-        if best is None and partial is not None:
-            best, status = partial, "partial"
+        if best is None and call.partial is not None:
+            best, status = call.partial, "partial"
         if best is not None:
             self.last_gear = last_gear(best.candidate)
         detail = {
-            "candidates": tried,
+            "candidates": call.tried,
             "guided": False,
             "stay_cost": self.cost_to_go(xi0[:3], prev or None),  # the policy's progress measure
             "value": best_j,
-            "safety_net": net,
+            "safety_net": call.net,
         }
-        return pl.finish(t0, status, totals, best_j if math.isfinite(best_j) else math.nan, detail, best)
+        return pl.finish(t0, status, call.totals, best_j if math.isfinite(best_j) else math.nan, detail, best)
 
     def _seed_merit(self, real: np.ndarray) -> float:
         """J of a seed rollout, plus a steep price on its footprint's penetration."""
@@ -164,3 +138,68 @@ class ValuePlanning:
             picked = [cs for cs in ranked if cs[0].switch is None]
             picked += [cs for cs in ranked if cs[0].switch is not None][: cfg.value_candidates]
         return picked
+
+
+class _Call:
+    """One planning call's scoring, aiming and solving of candidates, and its tallies."""
+
+    def __init__(self, vp: ValuePlanning, xi0: np.ndarray, start: Start, line, prev: int):
+        self.vp, self.pl, self.cfg = vp, vp.pl, vp.pl.cfg
+        self.xi0, self.start, self.line, self.prev = xi0, start, line, prev
+        self.target = np.array(self.pl.g.target, float)
+        self.reach = self.cfg.value_reach_speed * self.cfg.dt  # [m] per step of horizon left
+        self.totals = {"iterations": 0, "qp_solves": 0, "nodes": 0}
+        self.tried: list = []  # (candidate, J or None, status, goal) per solve
+        self.partial: Plan | None = None
+        self.net = False
+
+    def score(self, real: np.ndarray, c: Candidate) -> float:
+        """J: driven cost, the switch price (one more if the first gear is not the last plan's), V at the end."""
+        vc = self.vp.V.cfg
+        switches = (c.switch is not None) + (self.prev != 0 and c.direction != self.prev)
+        v = self.vp.cost_to_go(real[-1, :3], last_gear(c))
+        return driven_cost(real, vc.reverse_cost) + vc.switch_cost * switches + v
+
+    def aim(self, real: np.ndarray, c: Candidate) -> np.ndarray:
+        """The goal down V from the candidate's switch pose (or start) as far as the horizon left reaches."""
+        N, k = self.pl.N, 0 if c.switch is None else c.switch
+        pose = real[k * self.cfg.model_substeps, :3] if len(real) > N + 1 else real[k, :3]
+        goal = self.vp.V.descend(pose, last_gear(c), self.reach * (N - k))
+        return self.target.copy() if goal is None else goal
+
+    def solve(self, cand: Candidate, goal: np.ndarray, seed: np.ndarray, miqp) -> tuple[float, Plan | None]:
+        """(J, plan) of the candidate solved toward ``goal`` (inf, None: no plan); records the try."""
+        pl, cfg = self.pl, self.cfg
+        natural = cand.direction == pl.shape_seeds.first_direction
+        plan, st = pl.solve_candidate(
+            self.xi0, cand, goal, self.start, self.line, seed, iterations=cfg.value_iterations, band=natural, miqp=miqp
+        )
+        for k in self.totals:
+            self.totals[k] += st[k]
+        self.net = self.net or st.get("safety_net", False)
+        part = st.get("partial")
+        if part is not None and (self.partial is None or part.cost < self.partial.cost):
+            self.partial = part
+        if plan is None:
+            self.tried.append((cand, None, st["status"], tuple(np.round(goal, 3))))
+            return math.inf, None
+        moved = float(np.abs(plan.states[:, 3]).sum()) * cfg.dt
+        j = self.score(plan.states, cand) if moved > 0.05 else math.inf  # standing is no plan
+        self.tried.append((cand, round(j, 3), st["status"], tuple(np.round(goal, 3))))
+        return j, plan
+
+    def refine(self, best: Plan, best_j: float, goal: np.ndarray) -> tuple[Plan, float]:
+        """The leader re-aimed down V from its optimised plan and solved again, while its goal moves."""
+        pl, cand, plan = self.pl, best.candidate, best
+        for _ in range(self.cfg.value_updates - 1):
+            new = self.aim(plan.states, cand)
+            if np.hypot(*(new[:2] - goal[:2])) < 0.05 and abs(new[2] - goal[2]) % (2 * math.pi) < 0.02:
+                break
+            goal = new
+            seed = np.concatenate([self.xi0[None], pl.coarse.rollout(self.xi0, plan.commands)[:, :6]])
+            j, plan = self.solve(cand, goal, seed, pl.miqp)
+            if plan is None:
+                break
+            if j < best_j:
+                best, best_j = plan, j
+        return best, best_j
