@@ -38,7 +38,7 @@ def _mirror_value() -> Policy:
     from planners.mirror.config import MirrorPlannerConfig
     from planners.mirror.policy import MirrorPolicy
 
-    return _in_slot_frame(MirrorPolicy(MirrorPlannerConfig(guide=False, value=True)))
+    return _in_slot_frame(MirrorPolicy(MirrorPlannerConfig(guide=False, value=True, end_settled=True)))
 
 
 def _guide_only() -> Policy:

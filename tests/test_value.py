@@ -108,7 +108,8 @@ def test_a_bad_lattice_setting_is_refused_by_name():
 )
 def test_mirror_value_parks_and_executes_the_cheapest_candidate_of_each_call(case_id):
     env = gym.make("MirrorPark-v0").unwrapped
-    policy = MirrorPolicy(MirrorPlannerConfig(guide=False, value=True, time_limit_s=600.0))  # "mirror-value"
+    cfg = MirrorPlannerConfig(guide=False, value=True, end_settled=True, time_limit_s=600.0)  # "mirror-value"
+    policy = MirrorPolicy(cfg)
     info, _ = run_episode(env, policy, case_id)
     assert info["is_success"] and not info["collision"], info["failed_criterion"]
     calls = [s for s in policy.stats if s.status == "ok"]
@@ -117,3 +118,34 @@ def test_mirror_value_parks_and_executes_the_cheapest_candidate_of_each_call(cas
         costs = [c[1] for c in s.detail["candidates"] if c[1] is not None]
         assert s.detail["value"] == pytest.approx(min(costs), abs=1e-3)  # the optimisation's choice
         assert s.detail["guided"] is False
+
+
+def _rolls_back(plan, tau: float) -> bool:
+    """Braked to a stand from the plan's last state by the critically damped hold
+    (a_cmd = -(v / tau + a)), the car rolls against its last motion faster than the env's
+    1 cm/s switch threshold."""
+    v, a = plan.states[:, 3], plan.states[:, 4]
+    moving = np.flatnonzero(np.abs(v) > 0.01)
+    if not moving.size:
+        return False
+    g, v0, a0 = np.sign(v[moving[-1]]), v[-1], a[-1]
+    t = np.linspace(0.0, 10 * tau, 2001)
+    speed = (v0 + (v0 / tau + a0) * t) * np.exp(-t / tau)  # the hold law's closed form
+    return bool((-g * speed).max() > 0.01)
+
+
+@pytest.mark.slow
+def test_mirror_value_plans_end_settled_so_no_stop_rolls_back_across_zero():
+    # Without end_settled this episode parks with 3 switches: a plan stops while still braking
+    # (a = +0.57 m/s^2 after reversing) and the lag rolls the car forward at up to 0.01 m/s.
+    case = "reverse_rw7.00_sl4.82_sw2.92_th+10_y3.50"
+    results = {}
+    for settled in (False, True):
+        env = gym.make("MirrorPark-v0").unwrapped
+        policy = MirrorPolicy(MirrorPlannerConfig(guide=False, value=True, end_settled=settled, time_limit_s=600.0))
+        info, _ = run_episode(env, policy, case)
+        results[settled] = (info, [_rolls_back(p, env.params.tau_a) for p in policy.plans])
+    info, back = results[True]
+    assert info["is_success"] and info["direction_switches"] == 1
+    assert not any(back)
+    assert any(results[False][1])  # the check can fail: the plans without the bound do end so

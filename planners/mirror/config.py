@@ -61,6 +61,10 @@ class MirrorPlannerConfig(StrictModel):
     # The value mode (``mirror-value``, value_plan.py): candidates over first gear and switch,
     # each aimed down a cost to go (value.py) and compared by driven cost plus V at the end.
     value: bool = False
+    # Every plan ends settled: stopped, its lagged acceleration not pointing back (in the planned
+    # frame, direction x a_N >= 0). Without it a plan may stop while still braking, and the lag
+    # rolls the car back across zero: a direction switch of a centimetre that the env counts.
+    end_settled: bool = False
     value_lattice: ValueConfig = ValueConfig()
     value_candidates: int = Field(3, ge=1, le=20)  # switch candidates refined where V is blind
     value_updates: int = Field(2, ge=1, le=10)  # goal updates down V per candidate

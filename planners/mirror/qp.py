@@ -180,11 +180,11 @@ class MirrorQP:
         switch and at N. Commands after the switch are negated, so are their bounds."""
         key = (cand.direction, cand.switch)
         if key not in self._bounds:
-            self._bounds[key] = _box(self.p, self.N, self.nz, self.x_index, self.u_index, cand)
+            self._bounds[key] = _box(self.p, self.N, self.nz, self.x_index, self.u_index, cand, self.cfg.end_settled)
         return self._bounds[key]
 
 
-def _box(p: VehicleParams, N: int, nz: int, xi: np.ndarray, ui: np.ndarray, cand: Candidate):
+def _box(p: VehicleParams, N: int, nz: int, xi: np.ndarray, ui: np.ndarray, cand: Candidate, settled: bool = False):
     s = cand.switch
     x_l, x_u = np.full(nz, -np.inf), np.full(nz, np.inf)
     steps = np.arange(1, N + 1)
@@ -202,6 +202,11 @@ def _box(p: VehicleParams, N: int, nz: int, xi: np.ndarray, ui: np.ndarray, cand
     x_l[ud], x_u[ud] = -p.max_steer, p.max_steer
     for i in ([s] if s is not None else []) + [N]:  # stands at the switch; every plan ends stopped
         x_l[ix(i, XI_V)] = x_u[ix(i, XI_V)] = 0.0
+    if settled:  # the end's lagged acceleration may not point back: the car would roll across zero
+        if cand.direction > 0:
+            x_l[ix(N, XI_A)] = 0.0
+        else:
+            x_u[ix(N, XI_A)] = 0.0
     x_l.flags.writeable = x_u.flags.writeable = False
     return x_l, x_u
 
