@@ -154,6 +154,7 @@ class Checks:
                 s = sub[-1, :6]
                 states.append(s)
                 cmds.append((a, d))
+            poses.append(self.brake_tail(s)[:, :3])  # and the policy's brake after it, as truth_safe
             if self.clear_and_stopped(poses, s, start):
                 real = np.array(states)
                 cost, pos_err, th_err = self.true_cost(real, goal, theta_t)

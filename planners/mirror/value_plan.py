@@ -80,16 +80,23 @@ class ValuePlanning:
                 picked.append(cs)
         # Scouting: every candidate solved once, branch and bound on a small budget; then
         # the leader alone is refined (its goal moved down V from its optimised plan, on the
-        # full budget). Where no candidate gives a plan, each is solved on the full budget.
+        # full budget). Where no candidate gives a plan, those whose branch and bound ran out
+        # of nodes before any feasible assignment are solved again on the full budget.
         goals = [target.copy() if n in fixed else call.aim(seed, cand) for n, (cand, seed) in enumerate(picked)]
         best, best_j, lead = None, math.inf, -1
+        todo = list(range(len(picked)))
         for miqp in (pl.scout_miqp, pl.miqp):
-            for n, (cand, seed) in enumerate(picked):
-                j, plan = call.solve(cand, goals[n], seed, miqp)
+            cut_short = []
+            for n in todo:
+                cand, seed = picked[n]
+                j, plan, cut = call.solve(cand, goals[n], seed, miqp)
                 if j < best_j:
                     best, best_j, lead = plan, j, n
+                if cut:
+                    cut_short.append(n)
             if best is not None:
                 break
+            todo = cut_short
         if best is not None and lead not in fixed:
             best, best_j = call.refine(best, best_j, goals[lead])
         status = "ok" if best is not None else "infeasible"
@@ -167,8 +174,9 @@ class _Call:
         goal = self.vp.V.descend(pose, last_gear(c), self.reach * (N - k))
         return self.target.copy() if goal is None else goal
 
-    def solve(self, cand: Candidate, goal: np.ndarray, seed: np.ndarray, miqp) -> tuple[float, Plan | None]:
-        """(J, plan) of the candidate solved toward ``goal`` (inf, None: no plan); records the try."""
+    def solve(self, cand: Candidate, goal: np.ndarray, seed: np.ndarray, miqp) -> tuple[float, Plan | None, bool]:
+        """(J, plan, cut short) of the candidate solved toward ``goal`` (inf, None: no plan; cut
+        short: its branch and bound ran out of nodes before any feasible assignment); records the try."""
         pl, cfg = self.pl, self.cfg
         natural = cand.direction == pl.shape_seeds.first_direction
         plan, st = pl.solve_candidate(
@@ -182,11 +190,11 @@ class _Call:
             self.partial = part
         if plan is None:
             self.tried.append((cand, None, st["status"], tuple(np.round(goal, 3))))
-            return math.inf, None
+            return math.inf, None, st.get("cut_short", False)
         moved = float(np.abs(plan.states[:, 3]).sum()) * cfg.dt
         j = self.score(plan.states, cand) if moved > 0.05 else math.inf  # standing is no plan
         self.tried.append((cand, round(j, 3), st["status"], tuple(np.round(goal, 3))))
-        return j, plan
+        return j, plan, False
 
     def refine(self, best: Plan, best_j: float, goal: np.ndarray) -> tuple[Plan, float]:
         """The leader re-aimed down V from its optimised plan and solved again, while its goal moves."""
@@ -197,7 +205,7 @@ class _Call:
                 break
             goal = new
             seed = np.concatenate([self.xi0[None], pl.coarse.rollout(self.xi0, plan.commands)[:, :6]])
-            j, plan = self.solve(cand, goal, seed, pl.miqp)
+            j, plan, _ = self.solve(cand, goal, seed, pl.miqp)
             if plan is None:
                 break
             if j < best_j:
