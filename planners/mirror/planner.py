@@ -413,8 +413,8 @@ class MirrorPlanner:
             st["qp_solves"] += res.qp_solves
             st["nodes"] += res.nodes
             st["safety_net"] = st.get("safety_net", False) or res.status == "time_limit"
-            if res.x is None and res.status == "node_limit":
-                st["cut_short"] = True  # out of nodes before any assignment was feasible
+            if res.status == "node_limit":
+                st["cut_short"] = True  # out of nodes: its optimum not proved, perhaps not found
             return res.x
         st["qp_solves"] += 1
         return self.qp_backend.solve(qp).x

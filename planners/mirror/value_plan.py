@@ -28,6 +28,7 @@ from ..common.path import Path
 from .checks import Start
 from .guide import Guide
 from .plans import Candidate, Plan
+from .solvers import BranchAndBound
 from .value import CostToGo
 
 if TYPE_CHECKING:
@@ -81,15 +82,22 @@ class ValuePlanning:
         # Scouting: every candidate solved once, branch and bound on a small budget; then
         # the leader alone is refined (its goal moved down V from its optimised plan, on the
         # full budget). Where no candidate gives a plan, those whose branch and bound ran out
-        # of nodes before any feasible assignment are solved again on the full budget.
+        # of nodes are solved again on the full budget, within ``value_retry_nodes`` in all.
         goals = [target.copy() if n in fixed else call.aim(seed, cand) for n, (cand, seed) in enumerate(picked)]
         best, best_j, lead = None, math.inf, -1
-        todo = list(range(len(picked)))
-        for miqp in (pl.scout_miqp, pl.miqp):
+        todo, retry_nodes = list(range(len(picked))), cfg.value_retry_nodes
+        for full in (False, True):
             cut_short = []
             for n in todo:
                 cand, seed = picked[n]
+                miqp = pl.scout_miqp
+                if full:
+                    if retry_nodes <= 0:
+                        break
+                    miqp = BranchAndBound(pl.qp_backend, min(cfg.node_limit, retry_nodes), cfg.time_limit_s)
+                used = call.totals["nodes"]
                 j, plan, cut = call.solve(cand, goals[n], seed, miqp)
+                retry_nodes -= (call.totals["nodes"] - used) if full else 0
                 if j < best_j:
                     best, best_j, lead = plan, j, n
                 if cut:
@@ -176,7 +184,7 @@ class _Call:
 
     def solve(self, cand: Candidate, goal: np.ndarray, seed: np.ndarray, miqp) -> tuple[float, Plan | None, bool]:
         """(J, plan, cut short) of the candidate solved toward ``goal`` (inf, None: no plan; cut
-        short: its branch and bound ran out of nodes before any feasible assignment); records the try."""
+        short: its branch and bound ran out of nodes); records the try."""
         pl, cfg = self.pl, self.cfg
         natural = cand.direction == pl.shape_seeds.first_direction
         plan, st = pl.solve_candidate(
@@ -194,7 +202,7 @@ class _Call:
         moved = float(np.abs(plan.states[:, 3]).sum()) * cfg.dt
         j = self.score(plan.states, cand) if moved > 0.05 else math.inf  # standing is no plan
         self.tried.append((cand, round(j, 3), st["status"], tuple(np.round(goal, 3))))
-        return j, plan, False
+        return j, plan, st.get("cut_short", False)
 
     def refine(self, best: Plan, best_j: float, goal: np.ndarray) -> tuple[Plan, float]:
         """The leader re-aimed down V from its optimised plan and solved again, while its goal moves."""
