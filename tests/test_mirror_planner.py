@@ -331,6 +331,33 @@ def test_the_policy_replans_once_the_rest_of_its_plan_would_only_creep():
     assert not policy._idle(VehicleState(0, 0, 0, v=0.0))
 
 
+def test_giving_up_mid_plan_finishes_the_verified_plan_rather_than_braking_off_it():
+    # With the lag, a car at v = 0 may still be accelerating: braking there, wheels held,
+    # rolled a give-up 2.7 cm into a neighbour (mirror-value, parallel_rw4.00_sl5.22_sw2.50_th+90_y0.80).
+    from types import SimpleNamespace
+
+    from mirrorpark_env import to_action
+    from mirrorpark_env.vehicle import VehicleState
+    from planners.base import PlanStats
+    from planners.common.tracker import hold_accel
+
+    policy = MirrorPolicy()
+    policy.reset(Scenario.from_case_id("reverse_rw5.00_sl4.82_sw2.47_th+0_y2.00").build())
+    commands = np.array([[3.0, 0.6], [-2.0, 0.3], [-1.0, 0.1]])
+    policy.plan, policy.k = SimpleNamespace(commands=commands, states=np.zeros((4, 6))), 1
+    stalled = SimpleNamespace(stats=PlanStats(0.01, "partial", detail={"stay_cost": 5.0}))
+    policy.planner.plan = lambda s: stalled
+    policy._best["stay_cost"], policy._since_best = 5.0, policy.patience  # no progress for too long
+    s = VehicleState(0.0, 0.0, 0.0, v=0.0, a=-1.0, delta=0.3)
+    policy._replan(s)
+    assert policy.gave_up
+    action = policy.act({}, {"vehicle_state": s})
+    np.testing.assert_allclose(action, to_action(policy.params, -2.0, 0.3))  # the plan's next command
+    policy.act({}, {"vehicle_state": s})
+    action = policy.act({}, {"vehicle_state": s})  # the plan is done: now the brake
+    np.testing.assert_allclose(action, to_action(policy.params, hold_accel(policy.params, 0.0, -1.0), 0.3))
+
+
 def test_a_slot_without_an_iso_pose_is_refused_at_once():
     policy = MirrorPolicy()
     info, steps = run_episode(gym.make("MirrorPark-v0"), policy, "reverse_rw7.00_sl4.82_sw1.77_th+0_y3.00")

@@ -79,7 +79,7 @@ class MirrorPolicy(Policy):
             self.plan is None or self.k >= len(self.plan.commands) or self._drifted(s) or self._idle(s)
         ):
             self._replan(s)
-        if self.plan is None:
+        if self.plan is None or self.k >= len(self.plan.commands):
             return self._brake(s)
         a, d = self.plan.commands[self.k]
         self.k += 1
@@ -134,7 +134,12 @@ class MirrorPolicy(Policy):
             self._since_best += 1
         if len(self.stats) >= self.max_plans or self._since_best >= self.patience:
             self.gave_up = True  # no progress: stop safely rather than shuffle for 180 s
-            self.plan = None
+            # The car finishes its verified plan, if any is left, which ends standing with its
+            # brake checked. Braking where it is, wheels held, leaves the checked path: with
+            # the lag, even a car at v = 0 may still be accelerating (measured: a give-up at a
+            # plan's reversal, a = -1.0 m/s^2, rolled 2.7 cm back into a neighbour).
+            if self.plan is not None and self.k >= len(self.plan.commands):
+                self.plan = None
             return
         self.plans.append(plan)
         self.plan = plan
