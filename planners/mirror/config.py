@@ -67,7 +67,7 @@ class MirrorPlannerConfig(StrictModel):
     end_settled: bool = False
     value_lattice: ValueConfig = ValueConfig()
     value_candidates: int = Field(3, ge=1, le=20)  # switch candidates refined where V is blind
-    value_updates: int = Field(2, ge=1, le=10)  # goal updates down V per candidate
+    value_updates: int = Field(2, ge=1, le=10)  # solves of the leading candidate, its goal moved down V each time
     value_iterations: int = Field(3, ge=1, le=100)  # SCP rounds per update
     value_scout_node_limit: int = Field(10, ge=1, le=100_000)  # branch-and-bound nodes per MIQP while scouting
     value_retry_nodes: int = Field(300, ge=0, le=1_000_000)  # nodes in all for re-solving on the full budget

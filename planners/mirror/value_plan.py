@@ -8,10 +8,11 @@ optimised trajectory is cheapest by
 
 with V the cost to go of ``value.py``: the terminal cost beyond the one-switch horizon. A
 candidate's goal lies down V from its own switch pose (or start), in its last gear, as far
-as the rest of the horizon reaches, and moves with the optimised plan (``updates``); within
-``finish_radius`` of the target the paper's own candidates, aimed at the target itself,
-join in. V's cheapest way on, tracked on the planning model, warm-starts each candidate,
-and so may the geometric guide; neither picks the goal or the winner.
+as the rest of the horizon reaches; the leading candidate's goal then moves with its
+optimised plan (``value_updates``). Within ``finish_radius`` of the target the paper's own
+candidates, aimed at the target itself, join in. V's cheapest way on, tracked on the
+planning model, warm-starts each candidate, and so may the geometric guide; neither picks
+the goal or the winner.
 """
 
 from __future__ import annotations
@@ -90,14 +91,15 @@ class ValuePlanning:
             cut_short = []
             for n in todo:
                 cand, seed = picked[n]
-                miqp = pl.scout_miqp
-                if full:
-                    if retry_nodes <= 0:
-                        break
+                if not full:
+                    j, plan, cut = call.solve(cand, goals[n], seed, pl.scout_miqp)
+                elif retry_nodes > 0:
+                    used = call.totals["nodes"]
                     miqp = BranchAndBound(pl.qp_backend, min(cfg.node_limit, retry_nodes), cfg.time_limit_s)
-                used = call.totals["nodes"]
-                j, plan, cut = call.solve(cand, goals[n], seed, miqp)
-                retry_nodes -= (call.totals["nodes"] - used) if full else 0
+                    j, plan, cut = call.solve(cand, goals[n], seed, miqp)
+                    retry_nodes -= call.totals["nodes"] - used
+                else:
+                    break
                 if j < best_j:
                     best, best_j, lead = plan, j, n
                 if cut:
