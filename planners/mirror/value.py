@@ -306,6 +306,28 @@ class CostToGo:
                         best, arg = v, s
         return best, arg
 
+    def lookahead(self, pose, gear: int | None = None) -> float:
+        """V at ``pose`` (arrived in ``gear``; None: at rest) by one exact move from the pose
+        itself, clear as V's own moves are, plus V where it lands: ``at`` reads a cell whose
+        stored pose may lie up to half a cell from this one, and near an obstacle a way on
+        open from there may be shut from here (measured: a plan ended 4 cm from a slot's
+        neighbour, where ``at`` read 7.0 m reversing on and every reverse move collided). Within
+        two moves of the target, ``at``: one more move would overcharge it."""
+        pose = np.asarray(pose, float)[:3]
+        v0, _ = self.at(pose, gear)
+        if v0 < 2 * self.step:
+            return v0
+        need = min(self.cfg.clearance, self._gap(pose))
+        best = math.inf
+        for p in range(len(self.gear)):
+            g = int(self.gear[p])
+            q = arc(pose, self.kappa[p], np.array([0.5 * g * self.step, g * self.step]))
+            if np.any(gaps(self.g.checker, q, all_axes=True) < need):
+                continue
+            v = self.cost[p] + (self.cfg.switch_cost if gear is not None and g != gear else 0.0) + self.at(q[1], g)[0]
+            best = min(best, v)
+        return best
+
     def _col(self, s: int, gear: int | None) -> int:
         """The arrival gear's column at ``s`` (None: the cheaper)."""
         if gear is None:

@@ -60,7 +60,7 @@ class ValuePlanning:
         cells are too coarse, the pose error in metres of driving, at most ``finish_cap``
         above V (so that it ranks poses near the target and nowhere else)."""
         c = self.V.cfg
-        v, _ = self.V.at(pose, gear)
+        v = self.V.lookahead(pose, gear)
         tx, ty, tth = self.pl.g.target
         e = c.finish_position * math.hypot(pose[0] - tx, pose[1] - ty) + c.finish_heading * abs(
             unwrap_near(tth, pose[2]) - pose[2]
