@@ -13,6 +13,7 @@ import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario
 from planners.base import run_episode
 from planners.common.clearance import gaps
+from planners.common.path import arc
 from planners.mirror.config import MirrorPlannerConfig
 from planners.mirror.policy import MirrorPolicy
 from planners.mirror.value import CostToGo, ValueConfig
@@ -63,6 +64,25 @@ def test_policy_path_starts_in_the_gear_asked_and_changes_gear_as_allowed(revers
             np.testing.assert_allclose(poses[0], start)
             assert along[0] == gear
             assert np.count_nonzero(along[1:] != along[:-1]) <= changes
+
+
+def test_lookahead_reads_v_through_an_exact_move_where_the_cell_says_too_little():
+    # A pose 4.5 cm from a reverse slot's neighbour, where a mirror-value plan ended: its cell
+    # reads 7.0 m reversing on, but every reverse move from the pose itself collides.
+    g = Scenario.from_case_id("reverse_rw7.00_sl4.82_sw2.22_th+10_y3.10").build()
+    V = CostToGo(g)
+    pose = np.array([1.779, 0.954, 1.297])
+    assert V.at(pose, -1)[0] == pytest.approx(6.96, abs=0.01)
+    for p in np.flatnonzero(V.gear < 0):  # every reverse move from the pose hits the neighbour
+        q = arc(pose, V.kappa[p], np.array([-0.5 * V.step, -V.step]))
+        assert gaps(g.checker, q, all_axes=True).min() < 0
+    # So the way on starts forward: a forward move, the switch (3 m), V where it lands.
+    ends = {p: arc(pose, V.kappa[p], np.array([V.step]))[0] for p in np.flatnonzero(V.gear > 0)}
+    forward = [V.cost[p] + 3.0 + V.at(q, 1)[0] for p, q in ends.items()]
+    assert V.lookahead(pose, -1) == pytest.approx(min(forward), abs=1e-9)
+    assert V.lookahead(pose, -1) > V.at(pose, -1)[0] + 3.0
+    t = np.array(g.target, float)
+    assert V.lookahead(t, -1) == V.at(t, -1)[0] == 0.0  # at the target: no move added
 
 
 TIGHT = "parallel_rw4.50_sl4.52_sw2.50_th-30_y3.30"  # a 3.82 m car, a 4.52 m slot
