@@ -83,6 +83,8 @@ def test_lookahead_reads_v_through_an_exact_move_where_the_cell_says_too_little(
     assert V.lookahead(pose, -1) > V.at(pose, -1)[0] + 3.0
     t = np.array(g.target, float)
     assert V.lookahead(t, -1) == V.at(t, -1)[0] == 0.0  # at the target: no move added
+    clear = np.array([3.0, 2.0, 0.0])  # in the road, far from every obstacle: the cell's value
+    assert V._gap(clear) > V.cfg.clearance and V.lookahead(clear, 1) == V.at(clear, 1)[0]
 
 
 TIGHT = "parallel_rw4.50_sl4.52_sw2.50_th-30_y3.30"  # a 3.82 m car, a 4.52 m slot
