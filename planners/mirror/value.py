@@ -321,16 +321,26 @@ class CostToGo:
         gap = self._gap(pose)
         if v0 < 2 * self.step or gap >= self.cfg.clearance:
             return v0
-        need = gap
         best = math.inf
+        for p, v, _ in self._moves_from(pose, None, gap):
+            switch = self.cfg.switch_cost if gear is not None and self.gear[p] != gear else 0.0
+            best = min(best, self.cost[p] + switch + v)
+        return best
+
+    def _moves_from(self, pose: np.ndarray, gear: int | None, need: float) -> list[tuple[int, float, int]]:
+        """(move, V where it lands having arrived in its gear, that state) for each exact move
+        from ``pose`` (in ``gear``; None: either) whose midpoint and end keep ``need``."""
+        out = []
         for p in range(len(self.gear)):
             g = int(self.gear[p])
+            if gear is not None and g != gear:
+                continue
             q = arc(pose, self.kappa[p], np.array([0.5 * g * self.step, g * self.step]))
             if np.any(gaps(self.g.checker, q, all_axes=True) < need):
                 continue
-            v = self.cost[p] + (self.cfg.switch_cost if gear is not None and g != gear else 0.0) + self.at(q[1], g)[0]
-            best = min(best, v)
-        return best
+            v, s = self.at(q[1], g)
+            out.append((p, v, s))
+        return out
 
     def _col(self, s: int, gear: int | None) -> int:
         """The arrival gear's column at ``s`` (None: the cheaper)."""
@@ -383,11 +393,7 @@ class CostToGo:
         g = 1.0 if first_gear > 0 else -1.0
         col = 1 if g > 0 else 0
         best, pick = math.inf, None
-        for p in np.flatnonzero(self.gear == int(g)):
-            q = arc(pose, self.kappa[p], np.array([0.5 * g * self.step, g * self.step]))
-            if np.any(gaps(self.g.checker, q, all_axes=True) < min(self.cfg.clearance, self._gap(pose))):
-                continue
-            v, s = self.at(q[1], int(g))
+        for p, v, s in self._moves_from(pose, int(g), min(self.cfg.clearance, self._gap(pose))):
             if v + self.cost[p] < best:
                 best, pick = v + self.cost[p], (p, s)
         if pick is None:
