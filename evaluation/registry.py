@@ -35,10 +35,10 @@ def _mirror_cold() -> Policy:
 
 
 def _mirror_value() -> Policy:
-    from planners.mirror.config import MirrorPlannerConfig
+    from planners.mirror.config import mirror_value_config
     from planners.mirror.policy import MirrorPolicy
 
-    return _in_slot_frame(MirrorPolicy(MirrorPlannerConfig(guide=False, value=True, end_settled=True)))
+    return _in_slot_frame(MirrorPolicy(mirror_value_config()))
 
 
 def _guide_only() -> Policy:

@@ -14,7 +14,7 @@ from mirrorpark_env import Scenario
 from planners.base import run_episode
 from planners.common.clearance import gaps
 from planners.common.path import arc
-from planners.mirror.config import MirrorPlannerConfig
+from planners.mirror.config import MirrorPlannerConfig, mirror_value_config
 from planners.mirror.policy import MirrorPolicy
 from planners.mirror.value import CostToGo, ValueConfig
 
@@ -24,7 +24,8 @@ REVERSE = "reverse_rw5.00_sl4.82_sw2.47_th+0_y2.00"  # target (1.235, -3.61), he
 @pytest.fixture(scope="module")
 def reverse_value() -> tuple[CostToGo, np.ndarray]:
     g = Scenario.from_case_id(REVERSE).build()
-    return CostToGo(g, ValueConfig(in_slot_arcs=0)), np.array(g.target, float)  # moves alone: by hand
+    moves_alone = ValueConfig(headings=72, in_slot_arcs=0, entry_length=0)  # worked by hand
+    return CostToGo(g, moves_alone), np.array(g.target, float)
 
 
 def test_straight_back_into_a_reverse_slot_costs_its_reversed_length(reverse_value):
@@ -68,9 +69,10 @@ def test_policy_path_starts_in_the_gear_asked_and_changes_gear_as_allowed(revers
 
 def test_lookahead_reads_v_through_an_exact_move_where_the_cell_says_too_little():
     # A pose 4.5 cm from a reverse slot's neighbour, where a mirror-value plan ended: its cell
-    # reads 7.0 m reversing on, but every reverse move from the pose itself collides.
+    # reads 7.0 m reversing on, but every reverse move from the pose itself collides (the
+    # lattice of 5 deg cells without the entries, as it was measured).
     g = Scenario.from_case_id("reverse_rw7.00_sl4.82_sw2.22_th+10_y3.10").build()
-    V = CostToGo(g)
+    V = CostToGo(g, ValueConfig(headings=72, entry_length=0))
     pose = np.array([1.779, 0.954, 1.297])
     assert V.at(pose, -1)[0] == pytest.approx(6.96, abs=0.01)
     for p in np.flatnonzero(V.gear < 0):  # every reverse move from the pose hits the neighbour
@@ -111,6 +113,39 @@ def test_in_slot_turns_reach_a_tight_parallel_slot_that_the_moves_alone_do_not()
     assert np.all(d <= V.step + 1e-5)
 
 
+def test_entries_price_a_way_in_that_the_moves_alone_price_five_times_too_high():
+    """Driven out of the reverse slot forward, 3.0 m straight then a 1.0 m full-lock arc: from
+    that pose the car reverses back in along the same path, 4.0 m at 1.5 per reversed metre
+    plus the steering price on the arc (6.05). The moves alone, a cell apart, reach the
+    slot's mouth only roughly and read 27.6 there; the entries give V the exact way, one
+    straight-arc-straight path that ends at the target, reversing throughout."""
+    g = Scenario.from_case_id(REVERSE).build()
+    t = np.array(g.target, float)
+    V = CostToGo(g, ValueConfig(headings=72, in_slot_arcs=0))
+    moves_alone = CostToGo(g, ValueConfig(headings=72, in_slot_arcs=0, entry_length=0))
+    pose = arc(arc(t, 0.0, np.array([3.0]))[0], 1.0 / V.radius, np.array([1.0]))[0]
+    exact = 4.0 * 1.5 + 0.05 * 1.0
+    v, s = V.at(pose, -1)
+    assert (
+        exact - 0.3 <= v <= exact + 1e-6
+    )  # the cell keeps its cheapest entry: this one, or one a cell's width shorter
+    assert moves_alone.at(pose, -1)[0] > exact + 20.0
+    way = V.way_on(s, 0)
+    poses = np.array([p for p, _ in way])
+    assert all(gear == -1.0 for _, gear in way[1:])
+    np.testing.assert_allclose(poses[-1], t, atol=1e-9)
+    assert np.hypot(*np.diff(poses[:, :2], axis=0).T).max() <= V.cfg.tail_step + 1e-6  # (poses kept in float32)
+    assert gaps(g.checker, poses, all_axes=True).min() >= V.cfg.clearance
+
+
+def test_a_target_closer_to_an_obstacle_than_the_clearance_gives_no_entries():
+    # A 3.82 m car in a 3.92 m parallel slot: no entry starts clear (this raised before).
+    g = Scenario.from_case_id("parallel_rw4.50_sl3.92_sw2.50_th+90_y1.30").build()
+    V = CostToGo(g)
+    assert gaps(g.checker, np.array([g.target], float), all_axes=True)[0] < V.cfg.clearance
+    assert not V.entry_rows and V.at(np.array(g.target, float))[0] == 0.0
+
+
 def test_a_bad_lattice_setting_is_refused_by_name():
     with pytest.raises(ValidationError, match="xy_resolution"):
         MirrorPlannerConfig(value=True, value_lattice={"xy_resolution": 0.0})
@@ -130,7 +165,7 @@ def test_a_bad_lattice_setting_is_refused_by_name():
 )
 def test_mirror_value_parks_and_executes_the_cheapest_candidate_of_each_call(case_id):
     env = gym.make("MirrorPark-v0").unwrapped
-    cfg = MirrorPlannerConfig(guide=False, value=True, end_settled=True, time_limit_s=600.0)  # "mirror-value"
+    cfg = mirror_value_config(time_limit_s=600.0)
     policy = MirrorPolicy(cfg)
     info, _ = run_episode(env, policy, case_id)
     assert info["is_success"] and not info["collision"], info["failed_criterion"]
@@ -164,7 +199,9 @@ def test_mirror_value_plans_end_settled_so_no_stop_rolls_back_across_zero():
     results = {}
     for settled in (False, True):
         env = gym.make("MirrorPark-v0").unwrapped
-        policy = MirrorPolicy(MirrorPlannerConfig(guide=False, value=True, end_settled=settled, time_limit_s=600.0))
+        # the value mode's first settings, under which it was measured (finish radius 3 m, 5 deg cells)
+        cfg = MirrorPlannerConfig(guide=False, value=True, end_settled=settled, time_limit_s=600.0)
+        policy = MirrorPolicy(cfg)
         info, _ = run_episode(env, policy, case)
         results[settled] = (info, [_rolls_back(p, env.params.tau_a) for p in policy.plans])
     info, back = results[True]

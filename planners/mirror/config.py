@@ -68,11 +68,30 @@ class MirrorPlannerConfig(StrictModel):
     value_lattice: ValueConfig = ValueConfig()
     value_candidates: int = Field(3, ge=1, le=20)  # switch candidates refined where V is blind
     value_updates: int = Field(2, ge=1, le=10)  # solves of the leading candidate, its goal moved down V each time
-    value_iterations: int = Field(3, ge=1, le=100)  # SCP rounds per update
+    value_iterations: int = Field(3, ge=1, le=100)  # SCP rounds per solve
     value_scout_node_limit: int = Field(10, ge=1, le=100_000)  # branch-and-bound nodes per MIQP while scouting
     value_retry_nodes: int = Field(300, ge=0, le=1_000_000)  # nodes in all for re-solving on the full budget
     value_reach_speed: float = Field(1.2, gt=0, le=3)  # [m/s] a goal lies at most this far down V per second left
     value_finish_radius: float = Field(3.0, ge=0)  # [m] within this of the target, also plan toward it
+
+
+def mirror_value_config(**changes) -> MirrorPlannerConfig:
+    """The settings of ``mirror-value`` (the registry's), with ``changes``.
+
+    No guide: each call's candidates are aimed down the cost to go, and within
+    ``value_finish_radius`` (8 m) at the target itself, and compared by their optimised
+    cost. Its SCP stops early only within 1 cm and 0.3 deg of a goal (a tight slot's ISO
+    window is a few centimetres wide); its cost to go has 3 deg heading cells."""
+    base = dict(
+        guide=False,
+        value=True,
+        end_settled=True,
+        value_finish_radius=8.0,
+        settle_position=0.01,
+        settle_heading=0.005,
+        value_lattice=ValueConfig(headings=120),
+    )
+    return MirrorPlannerConfig(**{**base, **changes})
 
 
 class MirrorPolicyConfig(StrictModel):

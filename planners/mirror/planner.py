@@ -337,6 +337,7 @@ class MirrorPlanner:
                 ref = new
                 trust_scale = max(trust_scale / 2.0, 0.25)
                 if usable and (converged or self.checks.settled(real, goal, theta_t)):
+                    st["converged"] = True  # not stopped by the round cap (the value mode refines on)
                     break
             else:
                 trust_scale *= 4.0

@@ -6,7 +6,10 @@ docs/mirror_planner.md). What the optimisation needs beyond its horizon is what 
 designer puts there: a cost to go. This module computes one by dynamic programming on a
 lattice of poses, once per slot: V(x, y, theta) is the cheapest way to the target in
 driven metres (reversing dearer, each direction switch priced), over moves of full lock
-either way or straight, in both gears, that keep a small gap to every obstacle.
+either way or straight, in both gears, that keep a small gap to every obstacle. Near the
+slot, where the moves a cell apart reach the mouth only roughly, exact paths into it are
+V's sources besides the target: multi-point turns inside it, and entries of one gear
+(straight, full-lock arc, straight).
 
 It is a value, not a path: nothing here says where a plan goes. The planner compares its
 own optimised plans by plan cost plus V at their ends, and pulls each plan's end down V.
@@ -15,6 +18,7 @@ own optimised plans by plan cost plus V at their ends, and pulls each plan's end
 from __future__ import annotations
 
 import math
+from typing import Annotated
 
 import numpy as np
 from numba import njit
@@ -45,6 +49,14 @@ class ValueConfig(StrictModel):
     # sources besides the target, where a tight slot is finer than the lattice.
     in_slot_arcs: int = Field(12, ge=0, le=100)
     tail_step: float = Field(0.02, gt=0, le=1)  # [m] spacing of their poses (an arc ends where it would touch)
+    # Exact single-gear entries into the slot (straight, full-lock arc, straight, driven out
+    # from the target until they would touch, 0: none): V's sources near the slot, where the
+    # lattice's moves, a cell apart, reach the mouth only roughly (measured: V read twice the
+    # cost of a one-switch park from a pose 5 m from a reverse slot).
+    entry_length: float = Field(6.0, ge=0, le=20)  # [m] longest straight of an entry, either side of its arc
+    entry_step: float = Field(0.1, gt=0.01, le=1)  # [m] spacing of the entries' straights and arc samples
+    # Their arcs' curvatures, as fractions of the car's limit: each adds a family of poses
+    entry_steer: tuple[Annotated[float, Field(gt=0, le=1)], ...] = (0.9,)
     # Near the target, where the cells are too coarse to rank poses: the pose error priced
     # in metres of driving (per m, per rad), at most this much above V.
     finish_position: float = Field(50.0, ge=0)
@@ -96,6 +108,66 @@ def _arc_pt(x, y, th, kappa, s):  # pragma: no cover - compiled
     if kappa != 0.0:
         return x + (math.sin(t) - math.sin(th)) / kappa, y - (math.cos(t) - math.cos(th)) / kappa, t
     return x + s * math.cos(th), y + s * math.sin(th), t
+
+
+@njit(cache=True)
+def _entries(tx, ty, tth, radius, ds, max_straight, clearance, gap_args):  # pragma: no cover - compiled
+    """Poses of straight-arc-straight paths driven out of the slot from the target, each
+    sample clear by ``clearance`` (a branch ends at its first sample that is not), with
+    each pose's path: rows (x, y, theta, out gear, s1, signed curvature, arc length, s2)."""
+    front, rear, hw, normals, pmin, pmax, verts = gap_args
+    n_s = int(max_straight / ds + 1e-9) + 1
+    n_a = int(0.6 * math.pi * radius / ds) + 1  # arcs to 108 degrees
+    cap = 4096
+    out = np.empty((cap, 8))
+    m = 0
+    one = np.empty((1, 3))
+    for og in (1.0, -1.0):
+        for i in range(n_s):
+            s1 = i * ds
+            x1, y1 = tx + og * s1 * math.cos(tth), ty + og * s1 * math.sin(tth)
+            one[0, 0], one[0, 1], one[0, 2] = x1, y1, tth
+            if _gaps(one, front, rear, hw, normals, pmin, pmax, verts, True)[0] < clearance:
+                break
+            if m + n_a * n_s + 1 > cap:
+                cap = 2 * (m + n_a * n_s + 1)
+                bigger = np.empty((cap, 8))
+                bigger[:m] = out[:m]
+                out = bigger
+            out[m, 0], out[m, 1], out[m, 2], out[m, 3], out[m, 4], out[m, 5], out[m, 6], out[m, 7] = (
+                x1,
+                y1,
+                tth,
+                og,
+                s1,
+                0.0,
+                0.0,
+                0.0,
+            )
+            m += 1
+            for turn in (1.0, -1.0):
+                for j in range(1, n_a):
+                    a = j * ds
+                    x2, y2, th2 = _arc_pt(x1, y1, tth, turn / radius, og * a)
+                    one[0, 0], one[0, 1], one[0, 2] = x2, y2, th2
+                    if _gaps(one, front, rear, hw, normals, pmin, pmax, verts, True)[0] < clearance:
+                        break
+                    if m + n_s > cap:
+                        cap = 2 * (m + n_s)
+                        bigger = np.empty((cap, 8))
+                        bigger[:m] = out[:m]
+                        out = bigger
+                    for k in range(n_s):
+                        s2 = k * ds
+                        x3, y3 = x2 + og * s2 * math.cos(th2), y2 + og * s2 * math.sin(th2)
+                        if k > 0:
+                            one[0, 0], one[0, 1], one[0, 2] = x3, y3, th2
+                            if _gaps(one, front, rear, hw, normals, pmin, pmax, verts, True)[0] < clearance:
+                                break
+                        out[m, 0], out[m, 1], out[m, 2], out[m, 3] = x3, y3, th2, og
+                        out[m, 4], out[m, 5], out[m, 6], out[m, 7] = s1, turn / radius, a, s2
+                        m += 1
+    return out[:m]
 
 
 @njit(cache=True)
@@ -208,6 +280,7 @@ class CostToGo:
         )
         self.target_state = self._state(-self.i0, -self.j0, 0)
         self.tails: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # state -> tail (``_in_slot``)
+        self.entry_rows: dict[int, np.ndarray] = {}  # state -> its entry's path (``_entries``)
         sources, source_pose, source_v = self._in_slot()
         grid = np.array([res, self.dth, tx, ty, tth, self.i0, self.j0, self.nx, self.ny, nh], float)
         fast = gap_kernel(geometry.checker)
@@ -220,10 +293,12 @@ class CostToGo:
         self.heap_peak = int(peak)
 
     def _in_slot(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """V's sources: the target, and the poses of exact multi-point turns out of the slot
+        """V's sources: the target; the poses of exact multi-point turns out of the slot
         from the target (each arc driven until it would come within ``clearance``), at the
-        cost of driving the turn back in; the cheapest in each cell. Each cell keeps its
-        tail: poses to the target, the gear of each step and the cost to go from each."""
+        cost of driving the turn back in; and the poses of exact single-gear entries
+        (``_entries``); the cheapest in each cell. Each cell keeps its tail: poses to the
+        target, the gear of each step and the cost to go from each (an entry's is drawn
+        when first asked for)."""
         cfg = self.cfg
         best: dict[int, tuple[float, np.ndarray | None, np.ndarray | None, np.ndarray | None]] = {
             self.target_state: (0.0, np.array([self.origin]), None, None)
@@ -248,17 +323,69 @@ class CostToGo:
                     st = self._state(i[m], j[m], h[m])
                     if inside[m] and cum[m] < best.get(st, (math.inf,))[0]:
                         best[st] = (float(cum[m]), chain[m::-1], gears[m:0:-1], cum[m::-1])
-        states = np.array(list(best), np.int64)
-        poses = np.array([best[int(st)][1][0] for st in states], float)
+        entries = {}  # state -> (cost, path row): an entry replaces a turn only where it is cheaper
+        if cfg.entry_length > 0:
+            entries = {st: (c, row) for st, c, row in self._entries() if c < best.get(st, (math.inf,))[0]}
+        states = np.array([st for st in best if st not in entries] + list(entries), np.int64)
+        poses = np.zeros((len(states), 3))
         vals = np.zeros((len(states), 2))
-        for n, st in enumerate(states):
-            c, tail, gears, cum = best[int(st)]
-            if gears is None:
-                continue
-            first = gears[0]  # arrived in the other gear, the car first switches
+        for n, st in enumerate(states.tolist()):
+            if st in entries:
+                c, row = entries[st]
+                poses[n], first = row[:3], -row[3]  # driven back in, in the other gear
+                self.entry_rows[st] = row  # its tail is drawn when first asked for (``_tail``)
+            else:
+                c, tail, gears, cum = best[st]
+                poses[n] = tail[0]
+                if gears is None:
+                    continue  # the target
+                first = gears[0]
+                self.tails[st] = (tail, gears, cum)
+            # arrived in the other gear than the first step's, the car first switches
             vals[n] = [c + (cfg.switch_cost if first > 0 else 0.0), c + (cfg.switch_cost if first < 0 else 0.0)]
-            self.tails[int(st)] = (tail, gears, cum)
         return states, poses, vals
+
+    def _entries(self) -> list[tuple[int, float, np.ndarray]]:
+        """(state, cost to the target, path row of ``_entries``) of the cheapest entry per cell."""
+        cfg = self.cfg
+        args = gap_kernel(self.g.checker).args
+        r_min = self.g.vehicle.r_min
+        ds, length, gap = cfg.entry_step, cfg.entry_length, cfg.clearance
+        rows = np.concatenate([_entries(*self.origin, r_min / f, ds, length, gap, args) for f in cfg.entry_steer])
+        i, j, h, inside = self.index(rows[:, :3])
+        length = rows[:, 4] + rows[:, 6] + rows[:, 7]
+        park_rev = rows[:, 3] > 0  # driven out forward: parked in reverse
+        steer = np.abs(rows[:, 5]) * self.radius  # of the lattice's full lock
+        cost = length * np.where(park_rev, 1.0 + cfg.reverse_cost, 1.0) + cfg.steer_cost * steer * rows[:, 6]
+        st = (i * self.ny + j) * self.nh + h
+        keep = np.flatnonzero(inside & (length > 0))
+        if len(keep) == 0:  # the target itself is not clear by ``clearance``: no entries
+            return []
+        order = keep[np.lexsort((cost[keep], st[keep]))]
+        first = order[np.r_[True, st[order][1:] != st[order][:-1]]]
+        return [(int(st[k]), float(cost[k]), rows[k]) for k in first]
+
+    def _tail(self, st: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """(poses to the target, gear of the step to each) of source ``st`` (None: the target)."""
+        tail = self.tails.get(st)
+        if tail is not None:
+            return tail[0], tail[1]
+        row = self.entry_rows.get(st)
+        if row is None:
+            return None
+        x, y, th, og, s1, kappa, a, s2 = (float(v) for v in row)
+        tx, ty, tth = self.origin
+        d = self.cfg.tail_step
+        out = [np.array([[tx, ty, tth]])]
+        if s1 > 0:
+            out.append(arc(out[-1][-1], 0.0, og * np.linspace(0, s1, max(2, math.ceil(s1 / d) + 1))[1:]))
+        if a > 0:
+            out.append(arc(out[-1][-1], kappa, og * np.linspace(0, a, max(2, math.ceil(a / d) + 1))[1:]))
+        if s2 > 0:
+            out.append(arc(out[-1][-1], 0.0, og * np.linspace(0, s2, max(2, math.ceil(s2 / d) + 1))[1:]))
+        poses = np.concatenate(out)[::-1].copy()
+        poses[0] = row[:3]  # exact: the source's own pose
+        return poses, np.full(len(poses) - 1, -og)
 
     # -- cells ------------------------------------------------------------------------
     def index(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -357,10 +484,10 @@ class CostToGo:
         while True:
             st, col = node // 2, node % 2
             nxt = int(self.next[st, col])
-            if nxt < 0:  # a source: the target, or an in-slot tail
-                tail = self.tails.get(st)
+            if nxt < 0:  # a source: the target, an in-slot tail or an entry
+                tail = self._tail(st)
                 if tail is not None:
-                    poses, gears, _ = tail
+                    poses, gears = tail
                     out += [(poses[m + 1], float(gears[m])) for m in range(len(poses) - 1)]
                 return out
             out.append((self.P[nxt // 2, nxt % 2].astype(float), 1.0 if nxt % 2 else -1.0))

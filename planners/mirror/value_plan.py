@@ -81,9 +81,10 @@ class ValuePlanning:
                 fixed.add(len(picked))
                 picked.append(cs)
         # Scouting: every candidate solved once, branch and bound on a small budget; then
-        # the leader alone is refined (its goal moved down V from its optimised plan, on the
-        # full budget). Where no candidate gives a plan, those whose branch and bound ran out
-        # of nodes are solved again on the full budget, within ``value_retry_nodes`` in all.
+        # the leader alone is refined (its goal moved down V from its optimised plan, its SCP
+        # continued where it had not converged, on the full budget). Where no candidate gives
+        # a plan, those whose branch and bound ran out of nodes are solved again on the full
+        # budget, within ``value_retry_nodes`` in all.
         goals = [target.copy() if n in fixed else call.aim(seed, cand) for n, (cand, seed) in enumerate(picked)]
         best, best_j, lead = None, math.inf, -1
         todo, retry_nodes = list(range(len(picked))), cfg.value_retry_nodes
@@ -102,6 +103,7 @@ class ValuePlanning:
                     break
                 if j < best_j:
                     best, best_j, lead = plan, j, n
+                    call.lead_converged = call.converged
                 if cut:
                     cut_short.append(n)
             if best is not None:
@@ -169,6 +171,7 @@ class _Call:
         self.tried: list = []  # (candidate, J or None, status, goal) per solve
         self.partial: Plan | None = None
         self.net = False
+        self.converged = self.lead_converged = False  # the last solve's SCP, the leader's: converged
 
     def score(self, real: np.ndarray, c: Candidate) -> float:
         """J: driven cost, the switch price (one more if the first gear is not the last plan's), V at the end."""
@@ -186,12 +189,14 @@ class _Call:
 
     def solve(self, cand: Candidate, goal: np.ndarray, seed: np.ndarray, miqp) -> tuple[float, Plan | None, bool]:
         """(J, plan, cut short) of the candidate solved toward ``goal`` (inf, None: no plan; cut
-        short: its branch and bound ran out of nodes); records the try."""
+        short: its branch and bound ran out of nodes); records the try, and whether its SCP
+        converged (``converged``)."""
         pl, cfg = self.pl, self.cfg
         natural = cand.direction == pl.shape_seeds.first_direction
         plan, st = pl.solve_candidate(
             self.xi0, cand, goal, self.start, self.line, seed, iterations=cfg.value_iterations, band=natural, miqp=miqp
         )
+        self.converged = st.get("converged", False)
         for k in self.totals:
             self.totals[k] += st[k]
         self.net = self.net or st.get("safety_net", False)
@@ -207,15 +212,19 @@ class _Call:
         return j, plan, st.get("cut_short", False)
 
     def refine(self, best: Plan, best_j: float, goal: np.ndarray) -> tuple[Plan, float]:
-        """The leader re-aimed down V from its optimised plan and solved again, while its goal moves."""
+        """The leader re-aimed down V from its optimised plan and solved again from it, while
+        its goal moves or its SCP has not converged (measured: three rounds left an entry
+        into a 1.92 m angle slot 6 cm to one side, and the car then shuffled 29 times)."""
         pl, cand, plan = self.pl, best.candidate, best
+        converged = self.lead_converged
         for _ in range(self.cfg.value_updates - 1):
             new = self.aim(plan.states, cand)
-            if np.hypot(*(new[:2] - goal[:2])) < 0.05 and abs(new[2] - goal[2]) % (2 * math.pi) < 0.02:
+            if np.hypot(*(new[:2] - goal[:2])) < 0.05 and abs(new[2] - goal[2]) % (2 * math.pi) < 0.02 and converged:
                 break
             goal = new
             seed = np.concatenate([self.xi0[None], pl.coarse.rollout(self.xi0, plan.commands)[:, :6]])
             j, plan, _ = self.solve(cand, goal, seed, pl.miqp)
+            converged = self.converged
             if plan is None:
                 break
             if j < best_j:
