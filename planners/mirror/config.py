@@ -81,7 +81,8 @@ def mirror_value_config(**changes) -> MirrorPlannerConfig:
     No guide: each call's candidates are aimed down the cost to go, and within
     ``value_finish_radius`` (8 m) at the target itself, and compared by their optimised
     cost. Its SCP stops early only within 1 cm and 0.3 deg of a goal (a tight slot's ISO
-    window is a few centimetres wide); its cost to go has 3 deg heading cells."""
+    window is a few centimetres wide); its cost to go has 3 deg heading cells and prices a
+    direction switch at 5 m of driving (measured against 3 and 8 m, docs/mirror_planner.md)."""
     base = dict(
         guide=False,
         value=True,
@@ -89,7 +90,7 @@ def mirror_value_config(**changes) -> MirrorPlannerConfig:
         value_finish_radius=8.0,
         settle_position=0.01,
         settle_heading=0.005,
-        value_lattice=ValueConfig(headings=120),
+        value_lattice=ValueConfig(headings=120, switch_cost=5.0),
     )
     return MirrorPlannerConfig(**{**base, **changes})
 
