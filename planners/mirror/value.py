@@ -111,6 +111,18 @@ def _arc_pt(x, y, th, kappa, s):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def _put(out, m, row):  # pragma: no cover - compiled
+    """``out`` with ``row`` at index ``m``, grown (doubled) where it is full."""
+    if m >= out.shape[0]:
+        bigger = np.empty((2 * out.shape[0], out.shape[1]))
+        bigger[:m] = out[:m]
+        out = bigger
+    for c in range(len(row)):
+        out[m, c] = row[c]
+    return out
+
+
+@njit(cache=True)
 def _entries(tx, ty, tth, radius, ds, max_straight, clearance, gap_args):  # pragma: no cover - compiled
     """Poses of straight-arc-straight paths driven out of the slot from the target, each
     sample clear by ``clearance`` (a branch ends at its first sample that is not), with
@@ -118,54 +130,34 @@ def _entries(tx, ty, tth, radius, ds, max_straight, clearance, gap_args):  # pra
     front, rear, hw, normals, pmin, pmax, verts = gap_args
     n_s = int(max_straight / ds + 1e-9) + 1
     n_a = int(0.6 * math.pi * radius / ds) + 1  # arcs to 108 degrees
-    cap = 4096
-    out = np.empty((cap, 8))
+    out = np.empty((4096, 8))
     m = 0
     one = np.empty((1, 3))
+
+    def clear(x, y, th):
+        one[0, 0], one[0, 1], one[0, 2] = x, y, th
+        return _gaps(one, front, rear, hw, normals, pmin, pmax, verts, True)[0] >= clearance
+
     for og in (1.0, -1.0):
         for i in range(n_s):
             s1 = i * ds
             x1, y1 = tx + og * s1 * math.cos(tth), ty + og * s1 * math.sin(tth)
-            one[0, 0], one[0, 1], one[0, 2] = x1, y1, tth
-            if _gaps(one, front, rear, hw, normals, pmin, pmax, verts, True)[0] < clearance:
+            if not clear(x1, y1, tth):
                 break
-            if m + n_a * n_s + 1 > cap:
-                cap = 2 * (m + n_a * n_s + 1)
-                bigger = np.empty((cap, 8))
-                bigger[:m] = out[:m]
-                out = bigger
-            out[m, 0], out[m, 1], out[m, 2], out[m, 3], out[m, 4], out[m, 5], out[m, 6], out[m, 7] = (
-                x1,
-                y1,
-                tth,
-                og,
-                s1,
-                0.0,
-                0.0,
-                0.0,
-            )
+            out = _put(out, m, (x1, y1, tth, og, s1, 0.0, 0.0, 0.0))
             m += 1
             for turn in (1.0, -1.0):
                 for j in range(1, n_a):
                     a = j * ds
                     x2, y2, th2 = _arc_pt(x1, y1, tth, turn / radius, og * a)
-                    one[0, 0], one[0, 1], one[0, 2] = x2, y2, th2
-                    if _gaps(one, front, rear, hw, normals, pmin, pmax, verts, True)[0] < clearance:
+                    if not clear(x2, y2, th2):
                         break
-                    if m + n_s > cap:
-                        cap = 2 * (m + n_s)
-                        bigger = np.empty((cap, 8))
-                        bigger[:m] = out[:m]
-                        out = bigger
                     for k in range(n_s):
                         s2 = k * ds
                         x3, y3 = x2 + og * s2 * math.cos(th2), y2 + og * s2 * math.sin(th2)
-                        if k > 0:
-                            one[0, 0], one[0, 1], one[0, 2] = x3, y3, th2
-                            if _gaps(one, front, rear, hw, normals, pmin, pmax, verts, True)[0] < clearance:
-                                break
-                        out[m, 0], out[m, 1], out[m, 2], out[m, 3] = x3, y3, th2, og
-                        out[m, 4], out[m, 5], out[m, 6], out[m, 7] = s1, turn / radius, a, s2
+                        if k > 0 and not clear(x3, y3, th2):
+                            break
+                        out = _put(out, m, (x3, y3, th2, og, s1, turn / radius, a, s2))
                         m += 1
     return out[:m]
 
