@@ -86,31 +86,30 @@ class ValuePlanning:
         # a plan, those whose branch and bound ran out of nodes are solved again on the full
         # budget, within ``value_retry_nodes`` in all.
         goals = [target.copy() if n in fixed else call.aim(seed, cand) for n, (cand, seed) in enumerate(picked)]
-        best, best_j, lead = None, math.inf, -1
+        best, best_j, lead, lead_converged = None, math.inf, -1, False
         todo, retry_nodes = list(range(len(picked))), cfg.value_retry_nodes
         for full in (False, True):
             cut_short = []
             for n in todo:
                 cand, seed = picked[n]
                 if not full:
-                    j, plan, cut = call.solve(cand, goals[n], seed, pl.scout_miqp)
+                    j, plan, cut, conv = call.solve(cand, goals[n], seed, pl.scout_miqp)
                 elif retry_nodes > 0:
                     used = call.totals["nodes"]
                     miqp = BranchAndBound(pl.qp_backend, min(cfg.node_limit, retry_nodes), cfg.time_limit_s)
-                    j, plan, cut = call.solve(cand, goals[n], seed, miqp)
+                    j, plan, cut, conv = call.solve(cand, goals[n], seed, miqp)
                     retry_nodes -= call.totals["nodes"] - used
                 else:
                     break
                 if j < best_j:
-                    best, best_j, lead = plan, j, n
-                    call.lead_converged = call.converged
+                    best, best_j, lead, lead_converged = plan, j, n, conv
                 if cut:
                     cut_short.append(n)
             if best is not None:
                 break
             todo = cut_short
         if best is not None and lead not in fixed:
-            best, best_j = call.refine(best, best_j, goals[lead])
+            best, best_j = call.refine(best, best_j, goals[lead], lead_converged)
         status = "ok" if best is not None else "infeasible"
         if best is None and call.partial is not None:
             best, status = call.partial, "partial"
@@ -171,7 +170,6 @@ class _Call:
         self.tried: list = []  # (candidate, J or None, status, goal) per solve
         self.partial: Plan | None = None
         self.net = False
-        self.converged = self.lead_converged = False  # the last solve's SCP, the leader's: converged
 
     def score(self, real: np.ndarray, c: Candidate) -> float:
         """J: driven cost, the switch price (one more if the first gear is not the last plan's), V at the end."""
@@ -187,16 +185,15 @@ class _Call:
         goal = self.vp.V.descend(pose, last_gear(c), self.reach * (N - k))
         return self.target.copy() if goal is None else goal
 
-    def solve(self, cand: Candidate, goal: np.ndarray, seed: np.ndarray, miqp) -> tuple[float, Plan | None, bool]:
-        """(J, plan, cut short) of the candidate solved toward ``goal`` (inf, None: no plan; cut
-        short: its branch and bound ran out of nodes); records the try, and whether its SCP
-        converged (``converged``)."""
+    def solve(self, cand: Candidate, goal: np.ndarray, seed: np.ndarray, miqp) -> tuple[float, Plan | None, bool, bool]:
+        """(J, plan, cut short, converged) of the candidate solved toward ``goal`` (inf, None:
+        no plan; cut short: its branch and bound ran out of nodes; converged: its SCP stopped
+        before its round cap); records the try."""
         pl, cfg = self.pl, self.cfg
         natural = cand.direction == pl.shape_seeds.first_direction
         plan, st = pl.solve_candidate(
             self.xi0, cand, goal, self.start, self.line, seed, iterations=cfg.value_iterations, band=natural, miqp=miqp
         )
-        self.converged = st.get("converged", False)
         for k in self.totals:
             self.totals[k] += st[k]
         self.net = self.net or st.get("safety_net", False)
@@ -205,26 +202,24 @@ class _Call:
             self.partial = part
         if plan is None:
             self.tried.append((cand, None, st["status"], tuple(np.round(goal, 3))))
-            return math.inf, None, st.get("cut_short", False)
+            return math.inf, None, st.get("cut_short", False), False
         moved = float(np.abs(plan.states[:, 3]).sum()) * cfg.dt
         j = self.score(plan.states, cand) if moved > 0.05 else math.inf  # standing is no plan
         self.tried.append((cand, round(j, 3), st["status"], tuple(np.round(goal, 3))))
-        return j, plan, st.get("cut_short", False)
+        return j, plan, st.get("cut_short", False), st.get("converged", False)
 
-    def refine(self, best: Plan, best_j: float, goal: np.ndarray) -> tuple[Plan, float]:
+    def refine(self, best: Plan, best_j: float, goal: np.ndarray, converged: bool) -> tuple[Plan, float]:
         """The leader re-aimed down V from its optimised plan and solved again from it, while
         its goal moves or its SCP has not converged (measured: three rounds left an entry
         into a 1.92 m angle slot 6 cm to one side, and the car then shuffled 29 times)."""
         pl, cand, plan = self.pl, best.candidate, best
-        converged = self.lead_converged
         for _ in range(self.cfg.value_updates - 1):
             new = self.aim(plan.states, cand)
             if np.hypot(*(new[:2] - goal[:2])) < 0.05 and abs(new[2] - goal[2]) % (2 * math.pi) < 0.02 and converged:
                 break
             goal = new
             seed = np.concatenate([self.xi0[None], pl.coarse.rollout(self.xi0, plan.commands)[:, :6]])
-            j, plan, _ = self.solve(cand, goal, seed, pl.miqp)
-            converged = self.converged
+            j, plan, _, converged = self.solve(cand, goal, seed, pl.miqp)
             if plan is None:
                 break
             if j < best_j:
