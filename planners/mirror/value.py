@@ -123,7 +123,7 @@ def _put(out, m, row):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _entries(tx, ty, tth, radius, ds, max_straight, clearance, gap_args):  # pragma: no cover - compiled
+def _entry_rows(tx, ty, tth, radius, ds, max_straight, clearance, gap_args):  # pragma: no cover - compiled
     """Poses of straight-arc-straight paths driven out of the slot from the target, each
     sample clear by ``clearance`` (a branch ends at its first sample that is not), with
     each pose's path: rows (x, y, theta, out gear, s1, signed curvature, arc length, s2)."""
@@ -271,9 +271,9 @@ class CostToGo:
             [1.0 + (cfg.reverse_cost if gr < 0 else 0.0) + (cfg.steer_cost if kk else 0.0) for gr, kk in moves]
         )
         self.target_state = self._state(-self.i0, -self.j0, 0)
-        self.tails: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # state -> tail (``_in_slot``)
+        self.tails: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # state -> tail (``_sources``)
         self.entry_rows: dict[int, np.ndarray] = {}  # state -> its entry's path (``_entries``)
-        sources, source_pose, source_v = self._in_slot()
+        sources, source_pose, source_v = self._sources()
         grid = np.array([res, self.dth, tx, ty, tth, self.i0, self.j0, self.nx, self.ny, nh], float)
         fast = gap_kernel(geometry.checker)
         self.V, self.P, self.next, peak = _search(
@@ -284,7 +284,7 @@ class CostToGo:
             raise RuntimeError(f"CostToGo: the search's heap overflowed ({peak} entries)")
         self.heap_peak = int(peak)
 
-    def _in_slot(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _sources(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """V's sources: the target; the poses of exact multi-point turns out of the slot
         from the target (each arc driven until it would come within ``clearance``), at the
         cost of driving the turn back in; and the poses of exact single-gear entries
@@ -338,14 +338,14 @@ class CostToGo:
         return states, poses, vals
 
     def _entries(self) -> list[tuple[int, float, np.ndarray]]:
-        """(state, cost to the target, path row of ``_entries``) of the cheapest entry per cell."""
+        """(state, cost to the target, path row of ``_entry_rows``) of the cheapest entry per cell."""
         cfg = self.cfg
         args = gap_kernel(self.g.checker).args
         r_min = self.g.vehicle.r_min
-        ds, length, gap = cfg.entry_step, cfg.entry_length, cfg.clearance
-        rows = np.concatenate([_entries(*self.origin, r_min / f, ds, length, gap, args) for f in cfg.entry_steer])
+        ds, longest, gap = cfg.entry_step, cfg.entry_length, cfg.clearance
+        rows = np.concatenate([_entry_rows(*self.origin, r_min / f, ds, longest, gap, args) for f in cfg.entry_steer])
         i, j, h, inside = self.index(rows[:, :3])
-        length = rows[:, 4] + rows[:, 6] + rows[:, 7]
+        length = rows[:, 4] + rows[:, 6] + rows[:, 7]  # of each entry's path
         park_rev = rows[:, 3] > 0  # driven out forward: parked in reverse
         steer = np.abs(rows[:, 5]) * self.radius  # of the lattice's full lock
         cost = length * np.where(park_rev, 1.0 + cfg.reverse_cost, 1.0) + cfg.steer_cost * steer * rows[:, 6]
