@@ -241,3 +241,44 @@ def test_an_expert_that_replans_moving_tells_a_drifted_learner_how_to_go_on():
     standing, moving = speeds_at_plans(False), speeds_at_plans(True)
     assert len(standing) == 2 and max(standing) <= 0.02  # the replan waits for the car to stand
     assert len(moving) == 2 and moving[1] > 0.5  # the replan comes while the car drives on
+
+
+@pytest.mark.rl
+def test_a_markov_expert_answers_from_the_state_alone():
+    """With ``markov`` the expert's label at a state does not depend on how the car got
+    there: an expert that rode along from the start and one asked for the first time give
+    the same action. The riding-along expert does not (fresh, it would first stop)."""
+    import gymnasium as gym
+
+    from evaluation.registry import make_policy
+
+    sc = Scenario.from_case_id(CASES[1])
+    env = gym.make("MirrorPark-v0")
+    o, info = env.reset(options={"scenario": sc})
+    geometry = info["geometry"]
+    along, along_markov = make_policy("guide-only"), make_policy("guide-only")
+    along_markov.inner.markov = True
+    along.reset(geometry)
+    along_markov.reset(geometry)
+    for t in range(30):  # the learner: the expert's own action, wheels held straight from 2.5 s on
+        a = along.act(o, info)
+        along_markov.act(o, info)
+        o, _, term, trunc, info = env.step(np.array([a[0], a[1] if t < 25 else 0.0], np.float32))
+        assert not (term or trunc)
+    assert abs(info["vehicle_state"].v) > 0.3  # a moving state, off the first plan's path
+    fresh, fresh_markov = make_policy("guide-only"), make_policy("guide-only")
+    fresh_markov.inner.markov = True
+    for p in (fresh, fresh_markov):
+        p.reset(geometry)
+    np.testing.assert_array_equal(along_markov.act(o, info), fresh_markov.act(o, info))
+    assert not np.array_equal(along.act(o, info), fresh.act(o, info))
+
+
+@pytest.mark.rl
+def test_a_markov_expert_must_price_the_gear_it_starts_in(require_module):
+    require_module("stable_baselines3")
+    from planners.rl.dagger import ShadowExpert
+
+    with pytest.raises(ValueError, match="expert_markov.*hybrid-astar"):
+        ShadowExpert("hybrid-astar", 6, markov=True)
+    assert ShadowExpert("guide-only", 6, markov=True).policy.inner.markov

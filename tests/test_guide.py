@@ -187,3 +187,15 @@ def test_a_prepared_search_is_shared_within_a_slot_and_searches_as_a_fresh_one()
     pose = np.array([b.start.x, b.start.y, b.start.theta])
     got, want = shared.search(pose), fresh.search(pose)
     assert np.array_equal(got.path.poses, want.path.poses) and got.cost == want.cost
+
+
+def test_a_guide_that_starts_in_the_other_gear_than_the_car_moves_pays_a_switch():
+    """A DAgger expert asked at a moving state (``TrackingPolicy.markov``) must stop before it
+    can drive the other way: the guide's cost counts that stop as a direction switch."""
+    g = Scenario.from_case_id("reverse_rw6.00_sl4.82_sw2.32_th+40_y3.00").build()
+    search = GuideSearch(g)
+    forward = np.array([[x, 3.0, 0.0] for x in np.arange(0.0, 2.01, 0.1)])  # 2 m straight ahead
+    cost = search._cost(forward)
+    assert cost == pytest.approx(2.0)
+    assert search._cost(forward, gear=1) == cost
+    assert search._cost(forward, gear=-1) == pytest.approx(cost + search.cfg.cusp_cost)

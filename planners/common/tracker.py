@@ -68,6 +68,11 @@ class PathTracker:
         self.e_y = 0.0
         self.e_theta = 0.0
 
+    @property
+    def first_gear(self) -> int:
+        """+1 or -1: the gear of the path's first segment (0 for an empty path)."""
+        return int(self._gear[self.segments[0][1]]) if self.segments else 0
+
     def _kappa_at(self, s: float, i0: int, i1: int) -> float:
         k = bisect.bisect_left(self._s, s, i0, i1 + 1)
         return self._kappa[min(max(k, i0 + 1), i1)]

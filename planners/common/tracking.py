@@ -7,6 +7,11 @@ end without the ISO check passing, or when the next command would leave the car 
 stop clear of an obstacle (``safety.StoppingCheck``). Before a replan the car is brought to
 a stand. A failed plan stops the car for good and says why in the last ``PlanStats``; it
 never raises.
+
+With ``markov`` set (a DAgger expert, ``planners/rl/dagger.py``), it instead plans afresh
+from every state it is asked about and answers with the tracker's first command on that
+path: its action is a function of the state alone, with no memory of an earlier plan's
+cusps, which a learner that sees only the state can imitate.
 """
 
 from __future__ import annotations
@@ -28,6 +33,8 @@ from .tracker import PathTracker, TrackerConfig, hold_command
 class TrackingPolicy(Policy):
     """Subclasses say how to ``prepare`` for a scene and how to ``find_path`` from a pose."""
 
+    prices_start_gear = False  # find_path(pose, gear) charges a switch for starting in the other gear
+
     def __init__(self, tracker: TrackerConfig | None = None, max_plans: int = 6, stopping_check: bool = True) -> None:
         super().__init__()
         self.stopping_check = stopping_check  # brake while the car can still stop clear (common.safety)
@@ -39,6 +46,7 @@ class TrackingPolicy(Policy):
         # expert's labels: a drifted learner is told how to go on, not to stop; dagger.py).
         # Off: brake to a stand first, as a car executing its own plans does.
         self.replan_moving = False
+        self.markov = False  # plan afresh from every state (module docstring)
         self.params = None
 
     @abstractmethod
@@ -46,8 +54,9 @@ class TrackingPolicy(Policy):
         """Build what the scene needs (called by ``reset``)."""
 
     @abstractmethod
-    def find_path(self, pose: tuple[float, float, float]) -> tuple[Path | None, PlanStats]:
-        """A path from ``pose`` (None on failure) and the call's statistics."""
+    def find_path(self, pose: tuple[float, float, float], gear: int = 0) -> tuple[Path | None, PlanStats]:
+        """A path from ``pose`` (None on failure) and the call's statistics; ``gear`` (+1, -1,
+        0 standing) the way the car moves there, used where ``prices_start_gear``."""
 
     def reset(self, geometry: ScenarioGeometry) -> None:
         self.prepare(geometry)
@@ -65,6 +74,8 @@ class TrackingPolicy(Policy):
         if self.params is None:
             raise RuntimeError(f"{type(self).__name__}: call reset(geometry) first")
         s: VehicleState = info["vehicle_state"]
+        if self.markov:
+            return self._act_afresh(s)
         tr = self.tracker
         if tr is not None and (tr.drifted or tr.done) and not info.get("is_success", False):
             self._replan_when_stopped = True
@@ -84,6 +95,27 @@ class TrackingPolicy(Policy):
             self.tracker = None
             self._replan_when_stopped = True
             self._stand_first = True
+            self.safety_stops += 1
+            return self._brake(s)
+        return to_action(self.params, a, d)
+
+    def _act_afresh(self, s: VehicleState) -> np.ndarray:
+        """The tracker's command on a path planned from this very state. Where the car already
+        moves in the path's first gear it drives on; else the tracker stops (and re-steers
+        standing) first, as it does at a cusp. Standing with no path, it gives up."""
+        gear = 0 if abs(s.v) <= 0.02 else (1 if s.v > 0 else -1)
+        path, stats = self.find_path((s.x, s.y, s.theta), gear)
+        self.stats.append(stats)
+        if path is None:
+            self.tracker = None
+            self.gave_up = gear == 0
+            return self._brake(s)
+        self.paths = [path]
+        tr = self.tracker = PathTracker(path, self.params, self.tracker_config)
+        if gear and tr.segments and tr.first_gear == gear:
+            tr.phase = "drive"
+        a, d = tr.command(s)
+        if self._stopping is not None and not self._stopping.safe(s, tr):
             self.safety_stops += 1
             return self._brake(s)
         return to_action(self.params, a, d)

@@ -29,8 +29,8 @@ class HybridAStarPolicy(TrackingPolicy):
     def prepare(self, geometry: ScenarioGeometry) -> None:
         self.planner = HybridAStar(geometry, self.config)
 
-    def find_path(self, pose) -> tuple[Path | None, PlanStats]:
-        return self.planner.plan(pose)
+    def find_path(self, pose, gear: int = 0) -> tuple[Path | None, PlanStats]:
+        return self.planner.plan(pose)  # the search starts standing (prices_start_gear is off)
 
     @property
     def status(self) -> str:

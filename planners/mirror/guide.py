@@ -113,11 +113,18 @@ class GuideSearch:
         return self._road_tails
 
     def connect(
-        self, pose, tails, limit: int, start_gap: float | None = None, batch: int = 16, bound: float = math.inf
+        self,
+        pose,
+        tails,
+        limit: int,
+        start_gap: float | None = None,
+        batch: int = 16,
+        bound: float = math.inf,
+        gear: int = 0,
     ):
         """Cheapest clear (samples, cost) from ``pose`` through one of ``tails``, checking at
         most ``limit`` of them in order of their lower bound; candidates whose lower bound
-        reaches ``bound`` (a guide already found) are not looked at.
+        reaches ``bound`` (a guide already found) are not looked at. ``gear``: as ``_cost``'s.
 
         Candidates are sampled and checked ``batch`` at a time (one vectorised pass each),
         then taken in order as if one by one: the result is the sequential search's. (Per
@@ -150,18 +157,22 @@ class GuideSearch:
                 if not clear:
                     continue
                 poses = np.concatenate([head, tails[k][1][1:]])
-                cost = self._cost(poses)
+                cost = self._cost(poses, gear)
                 if best is None or cost < best[1]:
                     best = (poses, cost)
         return best
 
     # -- costs and checks -------------------------------------------------------------
-    def _cost(self, poses: np.ndarray) -> float:
-        """Length, plus extra per metre reversed and per switch (gears as ``Path.from_poses``)."""
+    def _cost(self, poses: np.ndarray, gear: int = 0) -> float:
+        """Length, plus extra per metre reversed and per switch (gears as ``Path.from_poses``);
+        ``gear`` (+1, -1) the way the car moves at the first pose: a path that starts in the
+        other gear pays a switch, for the car must stop first (0: standing)."""
         d = np.diff(poses[:, :2], axis=0)
         ds = np.hypot(d[:, 0], d[:, 1])
         back = d[:, 0] * np.cos(poses[:-1, 2]) + d[:, 1] * np.sin(poses[:-1, 2]) < 0
         switches = int(np.count_nonzero(back[1:] != back[:-1]))
+        if gear and len(back) and bool(back[0]) != (gear < 0):
+            switches += 1
         return float(ds.sum()) + self.cfg.reverse_cost * float(ds[back].sum()) + self.cfg.cusp_cost * switches
 
     def _gaps(self, poses: np.ndarray) -> np.ndarray:
@@ -233,22 +244,24 @@ class GuideSearch:
         return out
 
     # -- search -----------------------------------------------------------------------
-    def search(self, pose) -> Guide | None:
-        """The cheapest clear guide from ``pose`` (x, y, theta), or None."""
+    def search(self, pose, gear: int = 0) -> Guide | None:
+        """The cheapest clear guide from ``pose`` (x, y, theta), or None; ``gear`` (+1, -1)
+        the way the car moves there (0: standing), so that starting in the other gear pays
+        a switch."""
         cfg = self.cfg
         pose = np.asarray(pose, float)[:3]
         start_gap = float(self._gaps(pose[None])[0])
         best: Guide | None = None
         direct = self.rs.sample(pose, self.target, cfg.sample_step)
         if self._clear(direct, start_gap):
-            best = Guide(Path.from_poses(direct), self._cost(direct))
+            best = Guide(Path.from_poses(direct), self._cost(direct, gear))
         found = self.connect(
-            pose, self.tails, cfg.max_checked, start_gap, bound=best.cost if best is not None else math.inf
+            pose, self.tails, cfg.max_checked, start_gap, bound=best.cost if best is not None else math.inf, gear=gear
         )
         if found is not None and (best is None or found[1] < best.cost):
             best = Guide(Path.from_poses(found[0]), found[1])
         if best is None:  # set up in the road first
-            found = self.connect(pose, self.road_tails(), cfg.max_checked, start_gap)
+            found = self.connect(pose, self.road_tails(), cfg.max_checked, start_gap, gear=gear)
             if found is not None:
                 best = Guide(Path.from_poses(found[0]), found[1])
         if best is None:  # an awkward start: first one arc (or a turn on the spot), then connect
@@ -258,7 +271,7 @@ class GuideSearch:
                 found = self.connect(arc[-1], tails, 4)
                 if found is not None:
                     poses = np.concatenate([arc, found[0][1:]])
-                    cost = self._cost(poses)
+                    cost = self._cost(poses, gear)
                     if best is None or cost < best.cost:
                         best = Guide(Path.from_poses(poses), cost)
         return best

@@ -22,6 +22,7 @@ from .guide import GuideConfig, GuideSearch, prepared_search
 
 class GuideOnlyPolicy(TrackingPolicy):
     name = "guide-only"
+    prices_start_gear = True
 
     def __init__(self, guide: GuideConfig | None = None, tracker: TrackerConfig | None = None, max_plans: int = 6):
         super().__init__(tracker, max_plans)
@@ -33,9 +34,9 @@ class GuideOnlyPolicy(TrackingPolicy):
         self.search = prepared_search(geometry, self.guide_config)  # the slot's part, as the mirror policy's
         self.setup_time_s = time.perf_counter() - t0
 
-    def find_path(self, pose) -> tuple[Path | None, PlanStats]:
+    def find_path(self, pose, gear: int = 0) -> tuple[Path | None, PlanStats]:
         t0 = time.perf_counter()
-        guide = self.search.search(pose)
+        guide = self.search.search(pose, gear)
         if guide is None:
             return None, PlanStats(time.perf_counter() - t0, "no_guide")
         return guide.path, PlanStats(time.perf_counter() - t0, "ok", cost=guide.cost)

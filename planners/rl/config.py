@@ -66,6 +66,10 @@ class DaggerConfig(StrictModel):
     # After a drift the expert plans again at once, moving or not (TrackingPolicy.replan_moving);
     # false: it brakes to a stand first, and its labels there say "brake".
     expert_replans_moving: bool = False
+    # The expert plans afresh from every state it is asked about, a switch priced where its
+    # path starts in the other gear than the car moves (TrackingPolicy.markov): its label is a
+    # function of the state alone. Needs an expert that prices the start gear (guide-only).
+    expert_markov: bool = False
     workers: int = Field(0, ge=0)  # rollout processes (0: all cores)
 
 

@@ -9,6 +9,12 @@ that state, with the expert's own memory of the manoeuvre it is in, never a fres
 (an earlier version labelled with the first command of a fresh plan, which at a moving
 state is "stop": the learner learned to hesitate).
 
+With ``dagger.expert_markov`` the expert keeps no such memory: it plans afresh from every
+state, and a path that starts in the other gear than the car moves pays a direction
+switch, so it drives on where it can (``TrackingPolicy.markov``). Its label is then a
+function of what the learner observes, as DAgger's analysis assumes; measured, this is
+what made the learner park (docs/rl.md).
+
 Round ``r`` (from 1) executes the expert's action with probability
 ``beta0 * beta_decay ** (r - 1)`` and the learner's otherwise (Ross et al., 2011); with
 ``beta0 = 1`` the first round is plain demonstration. Each round's states and labels join
@@ -38,7 +44,7 @@ from .config import RLConfig, env_config
 class ShadowExpert:
     """A named planner policy asked for its action at the states the learner visits."""
 
-    def __init__(self, planner: str, max_plans: int, replan_moving: bool = False) -> None:
+    def __init__(self, planner: str, max_plans: int, replan_moving: bool = False, markov: bool = False) -> None:
         from evaluation.registry import make_policy
         from planners.common.tracking import TrackingPolicy
 
@@ -48,8 +54,11 @@ class ShadowExpert:
             raise ValueError(
                 f"dagger.expert: {planner!r} does not track a path in feedback; use guide-only or hybrid-astar"
             )
+        if markov and not inner.prices_start_gear:
+            raise ValueError(f"dagger.expert_markov: {planner!r} does not price the gear it starts in; use guide-only")
         inner.max_plans = max_plans
         inner.replan_moving = replan_moving
+        inner.markov = markov
         self.calls = 0
 
     def reset(self, geometry) -> None:
@@ -110,7 +119,7 @@ def rollouts(
 
 def _worker(job: tuple) -> tuple:
     """One process's share of a round (the model loaded from its file, on the CPU)."""
-    model_path, expert_name, max_plans, replan_moving, cases, beta, max_steps, seed, env_cfg = job
+    model_path, expert_name, max_plans, replan_moving, markov, cases, beta, max_steps, seed, env_cfg = job
     import torch
 
     torch.set_num_threads(1)
@@ -119,7 +128,7 @@ def _worker(job: tuple) -> tuple:
         from .policy import load_model
 
         model = load_model(str(model_path))
-    expert = ShadowExpert(expert_name, max_plans, replan_moving)
+    expert = ShadowExpert(expert_name, max_plans, replan_moving, markov)
     obs, labels, counts = rollouts(model, expert, cases, beta, max_steps, seed, env_cfg)
     return obs, labels, counts, expert.calls
 
@@ -188,6 +197,7 @@ def dagger(
                     dc.expert,
                     dc.expert_max_plans,
                     dc.expert_replans_moving,
+                    dc.expert_markov,
                     cases[w::workers],
                     beta,
                     dc.max_steps,
