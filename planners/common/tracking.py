@@ -88,15 +88,23 @@ class TrackingPolicy(Policy):
             tr = self.tracker
             if tr is None:
                 return self._brake(s)
-        a, d = tr.command(s)
-        if self._stopping is not None and not self._stopping.safe(s, tr):
+        action = self._command(s, tr)
+        if action is None:
             # Tracking has drifted toward an obstacle: stop while the car can, then replan
             # from a stand (also with ``replan_moving``: the car is about to hit something).
             self.tracker = None
             self._replan_when_stopped = True
             self._stand_first = True
-            self.safety_stops += 1
             return self._brake(s)
+        return action
+
+    def _command(self, s: VehicleState, tr: PathTracker) -> np.ndarray | None:
+        """The tracker's command as an action, or None where the stopping check forbids it
+        (counted in ``safety_stops``)."""
+        a, d = tr.command(s)
+        if self._stopping is not None and not self._stopping.safe(s, tr):
+            self.safety_stops += 1
+            return None
         return to_action(self.params, a, d)
 
     def _act_afresh(self, s: VehicleState) -> np.ndarray:
@@ -114,11 +122,8 @@ class TrackingPolicy(Policy):
         tr = self.tracker = PathTracker(path, self.params, self.tracker_config)
         if gear and tr.segments and tr.first_gear == gear:
             tr.phase = "drive"
-        a, d = tr.command(s)
-        if self._stopping is not None and not self._stopping.safe(s, tr):
-            self.safety_stops += 1
-            return self._brake(s)
-        return to_action(self.params, a, d)
+        action = self._command(s, tr)
+        return self._brake(s) if action is None else action
 
     def _plan(self, s: VehicleState) -> None:
         self._replan_when_stopped = False
