@@ -119,7 +119,7 @@ def rollouts(
 
 def _worker(job: tuple) -> tuple:
     """One process's share of a round (the model loaded from its file, on the CPU)."""
-    model_path, expert_name, max_plans, replan_moving, markov, cases, beta, max_steps, seed, env_cfg = job
+    model_path, dc, cases, beta, seed, env_cfg = job
     import torch
 
     torch.set_num_threads(1)
@@ -128,8 +128,8 @@ def _worker(job: tuple) -> tuple:
         from .policy import load_model
 
         model = load_model(str(model_path))
-    expert = ShadowExpert(expert_name, max_plans, replan_moving, markov)
-    obs, labels, counts = rollouts(model, expert, cases, beta, max_steps, seed, env_cfg)
+    expert = ShadowExpert(dc.expert, dc.expert_max_plans, dc.expert_replans_moving, dc.expert_markov)
+    obs, labels, counts = rollouts(model, expert, cases, beta, dc.max_steps, seed, env_cfg)
     return obs, labels, counts, expert.calls
 
 
@@ -192,18 +192,7 @@ def dagger(
             cases = training_cases(grid, dc.cases_per_round, 10_000 + cfg.seed * 100 + r, types)
             seed = cfg.seed * 1000 + r * 100
             jobs = [
-                (
-                    model_path,
-                    dc.expert,
-                    dc.expert_max_plans,
-                    dc.expert_replans_moving,
-                    dc.expert_markov,
-                    cases[w::workers],
-                    beta,
-                    dc.max_steps,
-                    seed + w,
-                    env_cfg,
-                )
+                (model_path, dc, cases[w::workers], beta, seed + w, env_cfg)
                 for w in range(workers)
                 if cases[w::workers]
             ]
