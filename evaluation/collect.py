@@ -103,12 +103,12 @@ def collect(
     bar = progress_bar(len(todo), f"collect {planner}", progress)
     try:
         items = [(planner, sc, str(episodes)) for sc in todo]
-        if workers == 1:
+        if min(workers, len(items)) <= 1:
             for item in items:
                 _record_to_file(item)
                 bar.update(1)
         else:
-            run_parallel(_record_to_file, items, lambda _: bar.update(1), workers)
+            run_parallel(_record_to_file, items, lambda _: bar.update(1), min(workers, len(items)))
     except KeyboardInterrupt:
         done = len(list(episodes.glob("*.npz")))
         raise KeyboardInterrupt(f"{done} episodes stored in {episodes}; rerun the same command to resume") from None

@@ -63,6 +63,8 @@ PLANNERS: dict[str, Callable[[], Policy]] = {
 }
 
 
+BUILTIN = dict(PLANNERS)  # those above; others are registered at run time (evaluation.runner passes them on)
+
 # The main job's and the benchmark's default set: the paper's comparison (the mirror planner
 # against the search-based baseline) and the guide alone, the ablation that runs in seconds.
 MAIN = ("mirror", "hybrid-astar", "guide-only")

@@ -199,11 +199,11 @@ def evaluate(
     try:
         if backend == "ray":
             _run_ray(planner, todo, keep, ray_address, workers)
-        elif workers == 1:
+        elif min(workers, len(todo)) <= 1:  # no processes to start for one case
             for sc in todo:
                 keep(run_case(planner, sc))
         else:
-            run_parallel(_run_case_tuple, [(planner, sc) for sc in todo], keep, workers)
+            run_parallel(_run_case_tuple, [(planner, sc) for sc in todo], keep, min(workers, len(todo)))
     except KeyboardInterrupt:
         bar.close()
         store.compact()
@@ -227,12 +227,51 @@ def _ignore_sigint() -> None:
 def run_parallel(fn, items: list, keep, workers: int) -> None:
     """``keep(fn(item))`` for every item, in ``workers`` processes, in the order they finish.
     ``fn`` must be a module-level function (it is pickled for the workers)."""
-    import multiprocessing as mp
-
-    ctx = mp.get_context("fork" if hasattr(os, "fork") else "spawn")
-    with ctx.Pool(workers, initializer=_ignore_sigint, maxtasksperchild=200) as pool:
+    ctx, extra = _pool_context()
+    with ctx.Pool(workers, initializer=_init_worker, initargs=(extra,), maxtasksperchild=200) as pool:
         for out in pool.imap_unordered(fn, items, chunksize=1):
             keep(out)
+
+
+def _pool_context():
+    """The start method for worker processes, and the planners the workers must be told of.
+
+    ``fork`` is cheap and keeps planners registered at run time (a script's or a notebook's
+    own), but a fork copies every lock as it was: one held by another thread of the parent
+    (an I/O thread, a progress bar's, a thread pool's) stays held in the child for good, and the
+    worker hangs. So fork only a single-threaded process; otherwise start the workers from a
+    fresh ``forkserver`` and pass them the planners registered at run time by reference.
+    """
+    import multiprocessing as mp
+
+    from . import registry
+
+    extra = {k: f for k, f in registry.PLANNERS.items() if registry.BUILTIN.get(k) is not f}
+    if not hasattr(os, "fork"):
+        return mp.get_context("spawn"), extra
+    if _native_threads() == 1 or any(getattr(f, "__module__", None) == "__main__" for f in extra.values()):
+        # A planner defined in __main__ (``python -c``, a notebook) exists only in a fork.
+        return mp.get_context("fork"), {}
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(["evaluation.runner", "evaluation.registry", "mirrorpark_env"])
+    return ctx, extra
+
+
+def _native_threads() -> int:
+    try:
+        return len(os.listdir("/proc/self/task"))  # every thread, those of C libraries too
+    except OSError:
+        import threading
+
+        return threading.active_count()
+
+
+def _init_worker(extra: dict) -> None:
+    """Workers leave Ctrl-C to the parent, and know the planners registered at run time."""
+    from . import registry
+
+    _ignore_sigint()
+    registry.PLANNERS.update(extra)
 
 
 def _run_ray(planner: str, todo: list[Scenario], keep, address: str | None, workers: int) -> None:

@@ -1,0 +1,67 @@
+"""Worker processes start safely whatever the parent's other threads hold."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+
+import numpy as np
+import pytest
+
+from evaluation import registry
+from evaluation.runner import _pool_context, evaluate
+from evaluation.store import read_results
+from mirrorpark_env import Scenario
+from planners.base import Policy
+
+CASES = ("reverse_rw6.00_sl4.82_sw2.32_th+40_y3.00", "angle_rw3.50_sl4.82_sw2.77_th+10_y1.30")
+_LOCK = threading.Lock()  # module-level, like a logging or I/O lock a library keeps
+
+
+class _Locking(Policy):
+    """Takes the module's lock once per episode, then stops at once."""
+
+    def reset(self, geometry):
+        with _LOCK:
+            self.gave_up = True
+
+    def act(self, obs, info):
+        return np.zeros(2, dtype=np.float32)
+
+
+def test_a_lock_held_by_another_thread_does_not_hang_the_workers(tmp_path, monkeypatch):
+    """A fork would copy the lock held for good (the hang once seen in CI); workers start clean."""
+    monkeypatch.setitem(registry.PLANNERS, "locking", _Locking)
+    release, held = threading.Event(), threading.Event()
+
+    def hold() -> None:
+        with _LOCK:
+            held.set()
+            release.wait(120)
+
+    t = threading.Thread(target=hold, daemon=True)
+    t.start()
+    held.wait(10)
+    ctx, extra = _pool_context()
+    assert ctx.get_start_method() == "forkserver" and extra == {"locking": _Locking}
+    hung = threading.Event()
+
+    def stop() -> None:  # a hang becomes a failure here, not a stuck test run
+        hung.set()
+        os.kill(os.getpid(), signal.SIGINT)
+
+    done = threading.Timer(60, stop)
+    done.start()
+    try:
+        evaluate("locking", [Scenario.from_case_id(c) for c in CASES], tmp_path, workers=2, progress=False)
+    except KeyboardInterrupt:
+        if not hung.is_set():
+            raise
+        pytest.fail("the workers waited 60 s for a lock the parent's other thread held")
+    finally:
+        release.set()
+        done.cancel()
+        t.join()
+    df = read_results([tmp_path])
+    assert sorted(df["case_id"]) == sorted(CASES) and df["error"].isna().all()
