@@ -297,7 +297,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--resume",
         default=None,
         metavar="DIR",
-        help="continue the interrupted run in DIR from its last checkpoint (--steps may raise its total)",
+        help="continue the interrupted run in DIR from its last checkpoint (--steps may raise its total; "
+        "a DAgger run goes on from its last finished round, and --dagger-rounds may raise their number)",
     )
     t.add_argument(
         "--finetune",
@@ -357,7 +358,10 @@ def cmd_train_rl(args: argparse.Namespace) -> int:
         except ImportError:
             raise ValueError("algo tqc needs sb3-contrib (the rl extra): pip install -e '.[rl]'") from None
     out = args.resume or args.out
-    if args.resume:
+    if args.resume and (Path(out) / "dagger.json").exists():  # a DAgger run: on from its last round
+        run = json.loads((Path(out) / "dagger.json").read_text())
+        summary = dagger(cfg, run["demos"], out, rounds=args.dagger_rounds or run["rounds"], resume=True)
+    elif args.resume:
         summary = train(cfg, out, resume=True)
     elif args.demos and args.finetune:
         summary = finetune(cfg, args.demos, out)

@@ -282,3 +282,34 @@ def test_a_markov_expert_must_price_the_gear_it_starts_in(require_module):
     with pytest.raises(ValueError, match="expert_markov.*hybrid-astar"):
         ShadowExpert("hybrid-astar", 6, markov=True)
     assert ShadowExpert("guide-only", 6, markov=True).policy.inner.markov
+
+
+@pytest.mark.rl
+def test_an_interrupted_dagger_run_resumes_to_the_weights_of_one_without_a_break(tmp_path, require_module):
+    """Two rounds in one go, and one round then ``--resume --dagger-rounds 2``: the same
+    model, bit for bit, and the same round log; a folder with no finished round is refused."""
+    require_module("stable_baselines3")
+    import torch
+
+    from evaluation.cli import main as cli
+    from planners.rl.config import load_rl_config
+    from planners.rl.dagger import dagger
+    from planners.rl.policy import RLPolicy
+
+    over = {"lidar": {"rays": 8}, "dagger": {"cases_per_round": 2, "workers": 1, "max_steps": 40}, "bc": {"epochs": 2}}
+    cfg = load_rl_config("configs/rl_dagger.yaml", over)
+    whole = dagger(cfg, None, tmp_path / "whole", rounds=2, progress=False)
+    first = dagger(cfg, None, tmp_path / "cut", rounds=1, progress=False)
+    assert [r["round"] for r in first["rounds"]] == [1]
+    assert cli(["train-rl", "--resume", str(tmp_path / "cut"), "--dagger-rounds", "2"]) == 0
+    resumed = json.loads((tmp_path / "cut" / "train.json").read_text())
+    drop = lambda log: [{k: v for k, v in r.items() if k != "wall_s"} for r in log]  # noqa: E731
+    assert drop(resumed["rounds"]) == drop(whole["rounds"]) and resumed["samples"] == whole["samples"]
+    a = RLPolicy(tmp_path / "whole" / "model.zip").model.actor.state_dict()
+    b = RLPolicy(tmp_path / "cut" / "model.zip").model.actor.state_dict()
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    assert sorted(p.name for p in (tmp_path / "cut" / "rounds").glob("data-*")) == ["data-r2.npz"]
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "empty" / "config.json").write_text(cfg.model_dump_json())
+    (tmp_path / "empty" / "dagger.json").write_text('{"demos": null, "rounds": 2}')
+    assert cli(["train-rl", "--resume", str(tmp_path / "empty")]) == 2

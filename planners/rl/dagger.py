@@ -22,6 +22,11 @@ the data, and the actor is fitted again on all of it (``bc.fit_actor``). Rollout
 when the episode does, or when the expert gives up (it has no label to give then).
 Training cases come from the grid with a seed per round, and cases of the smoke and
 standard samples are left out, so that those samples stay unseen.
+
+Each finished round leaves its model, all data so far and the log under ``OUT/rounds``;
+``train-rl --resume OUT`` goes on from the last finished round (and ``--dagger-rounds``
+there may raise the number of rounds). Every round's cases, coins and fit are seeded, so a
+resumed run ends with the very weights of one run without a break.
 """
 
 from __future__ import annotations
@@ -133,6 +138,37 @@ def _worker(job: tuple) -> tuple:
     return obs, labels, counts, expert.calls
 
 
+def save_round(out: Path, model, obs: dict, actions: np.ndarray, log: list, expert_calls: int, episodes: int) -> None:
+    """The finished round's model and all data so far, then the log that points to them
+    (written last and atomically: a run killed at any moment resumes from a whole round)."""
+    r = len(log)
+    model.save(out / "rounds" / f"model-r{r}.zip")
+    tmp = out / "rounds" / f"data-r{r}.tmp.npz"
+    np.savez(tmp, actions=actions, **{f"obs/{k}": v for k, v in obs.items()})
+    os.replace(tmp, out / "rounds" / f"data-r{r}.npz")
+    _write_json(out / "rounds" / "progress.json", {"log": log, "expert_calls": expert_calls, "episodes": episodes})
+    for old in (out / "rounds").glob("data-r*.npz"):  # the earlier rounds' data is part of this one's
+        if old.name != f"data-r{r}.npz":
+            old.unlink()
+
+
+def _load_data(out: Path, r: int) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    with np.load(out / "rounds" / f"data-r{r}.npz") as d:
+        return {k[4:]: d[k] for k in d.files if k.startswith("obs/")}, d["actions"]
+
+
+def load_progress(out: Path) -> dict | None:
+    """What ``save_round`` last wrote in ``out`` (None: no round finished there)."""
+    p = Path(out) / "rounds" / "progress.json"
+    return json.loads(p.read_text()) if p.exists() else None
+
+
+def _write_json(path: Path, data) -> None:
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=2))
+    os.replace(tmp, path)
+
+
 def training_cases(grid, n: int, seed: int, types: tuple[str, ...]) -> list[Scenario]:
     """``n`` grid cases drawn uniformly (split evenly over ``types``), none of them in the
     smoke or standard samples."""
@@ -152,16 +188,16 @@ def dagger(
     out: str | Path,
     rounds: int = 3,
     progress: bool = True,
+    resume: bool = False,
 ) -> dict[str, Any]:
-    """Optionally cloning ``demos`` first, then ``rounds`` DAgger rounds; saves model.zip, train.json."""
+    """Optionally cloning ``demos`` first, then ``rounds`` DAgger rounds; saves model.zip,
+    train.json. ``resume``: go on from the last round finished in ``out``."""
     import torch
-    from tqdm import tqdm
 
     from mirrorpark_env.grid import Grid
 
     from .train import make_model, make_train_env
 
-    dc = cfg.dagger
     out = Path(out)
     (out / "rounds").mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(cfg.torch_threads)
@@ -170,25 +206,69 @@ def dagger(
     t0 = time.perf_counter()
     obs: dict[str, np.ndarray] = {}
     actions = np.zeros((0, 2), np.float32)
-    episodes = 0
-    if demos is not None:
-        obs, actions, episodes = load_demos(demos, cfg.bc.successes_only)
-        fit_actor(model, obs, actions, cfg, progress)
-    workers = dc.workers or os.cpu_count() or 1
-    env_cfg = env_config(cfg)
-    types = tuple(cfg.parking_types)
-    log, expert_calls = [], 0
+    episodes, log, expert_calls = 0, [], 0
+    if resume:
+        state = load_progress(out)
+        if state is None:
+            raise ValueError(f"--resume: {out} holds no finished DAgger round to go on from")
+        log, expert_calls, episodes = state["log"], state["expert_calls"], state["episodes"]
+        _write_json(out / "dagger.json", {**json.loads((out / "dagger.json").read_text()), "rounds": rounds})
+        model.set_parameters(str(out / "rounds" / f"model-r{len(log)}.zip"), exact_match=True, device=model.device)
+        obs, actions = _load_data(out, len(log))
+    else:
+        (out / "config.json").write_text(cfg.model_dump_json(indent=2))
+        _write_json(out / "dagger.json", {"demos": str(demos) if demos is not None else None, "rounds": rounds})
+        if demos is not None:
+            obs, actions, episodes = load_demos(demos, cfg.bc.successes_only)
+            fit_actor(model, obs, actions, cfg, progress)
+        model.save(out / "rounds" / "model-r0.zip")
     # How rl:PATH loads a round's model: its algorithm and what it observes.
     meta = {"algo": cfg.algo, "config": {"lidar": cfg.lidar.model_dump()}}
     (out / "rounds" / "train.json").write_text(json.dumps(meta))
+    try:
+        obs, actions, log, expert_calls = _rounds(
+            cfg, model, grid, out, rounds, (obs, actions, log, expert_calls, episodes), t0, progress
+        )
+    except KeyboardInterrupt:
+        done = len((load_progress(out) or {"log": []})["log"])
+        raise KeyboardInterrupt(
+            f"{done} DAgger round(s) finished in {out}; go on with: mirrorpark train-rl --resume {out}"
+        ) from None
+    wall = time.perf_counter() - t0
+    return save_trained(
+        model,
+        cfg,
+        out,
+        "dagger",
+        demos,
+        episodes,
+        len(actions),
+        wall,
+        rounds=log,
+        expert=cfg.dagger.expert,
+        expert_calls=expert_calls,
+        epochs_per_fit=cfg.bc.epochs,
+        action_error_on_all=round(action_error(model, obs, actions), 6),
+    )
+
+
+def _rounds(cfg: RLConfig, model, grid, out: Path, rounds: int, state: tuple, t0: float, progress: bool) -> tuple:
+    """Rounds ``len(log) + 1`` .. ``rounds`` from ``state`` = (obs, actions, log, expert
+    calls, episodes), each saved as it finishes; the state after the last."""
+    from tqdm import tqdm
+
+    obs, actions, log, expert_calls, episodes = state
+    dc = cfg.dagger
+    workers = dc.workers or os.cpu_count() or 1
+    env_cfg = env_config(cfg)
+    types = tuple(cfg.parking_types)
     ctx = mp.get_context("spawn")  # the parent may hold a GPU: children start clean
     with ctx.Pool(workers) as pool:
-        for r in range(1, rounds + 1):
+        for r in range(len(log) + 1, rounds + 1):
             beta = dc.beta0 * dc.beta_decay ** (r - 1)
             if not len(actions) and beta < 1.0:
                 raise ValueError("dagger: with no --demos the first round must be the expert's (dagger.beta0: 1.0)")
             model_path = out / "rounds" / f"model-r{r - 1}.zip"
-            model.save(model_path)
             cases = training_cases(grid, dc.cases_per_round, 10_000 + cfg.seed * 100 + r, types)
             seed = cfg.seed * 1000 + r * 100
             jobs = [
@@ -214,24 +294,10 @@ def dagger(
                     "labelled": int(len(new_actions)),
                     "error_on_new_before_fit": err,  # how far the learner strayed (None in a first round)
                     **counts,
-                    "wall_s": round(time.perf_counter() - t0, 1),
+                    "wall_s": round(time.perf_counter() - t0, 1),  # of this run (a resumed run: of its part)
                 }
             )
+            save_round(out, model, obs, actions, log, expert_calls, episodes)
             if progress:
                 print(log[-1], flush=True)
-    wall = time.perf_counter() - t0
-    return save_trained(
-        model,
-        cfg,
-        out,
-        "dagger",
-        demos,
-        episodes,
-        len(actions),
-        wall,
-        rounds=log,
-        expert=dc.expert,
-        expert_calls=expert_calls,
-        epochs_per_fit=cfg.bc.epochs,
-        action_error_on_all=round(action_error(model, obs, actions), 6),
-    )
+    return obs, actions, log, expert_calls
