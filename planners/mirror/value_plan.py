@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mirrorpark_env.angles import unwrap_near
+from mirrorpark_env.angles import unwrap_near, wrap_angle
 from mirrorpark_env.vehicle import VehicleState
 
 from ..common.path import Path
@@ -215,7 +215,7 @@ class _Call:
         pl, cand, plan = self.pl, best.candidate, best
         for _ in range(self.cfg.value_updates - 1):
             new = self.aim(plan.states, cand)
-            if np.hypot(*(new[:2] - goal[:2])) < 0.05 and abs(new[2] - goal[2]) % (2 * math.pi) < 0.02 and converged:
+            if np.hypot(*(new[:2] - goal[:2])) < 0.05 and abs(wrap_angle(new[2] - goal[2])) < 0.02 and converged:
                 break
             goal = new
             seed = np.concatenate([self.xi0[None], pl.coarse.rollout(self.xi0, plan.commands)[:, :6]])
