@@ -313,3 +313,22 @@ def test_an_interrupted_dagger_run_resumes_to_the_weights_of_one_without_a_break
     (tmp_path / "empty" / "config.json").write_text(cfg.model_dump_json())
     (tmp_path / "empty" / "dagger.json").write_text('{"demos": null, "rounds": 2}')
     assert cli(["train-rl", "--resume", str(tmp_path / "empty")]) == 2
+
+
+@pytest.mark.rl
+def test_a_slower_expert_keeps_to_its_cruising_speed_and_still_parks(require_module):
+    require_module("stable_baselines3")
+    import gymnasium as gym
+
+    from planners.base import run_episode
+    from planners.rl.dagger import ShadowExpert
+
+    sc = Scenario.from_case_id(CASES[0])
+    top = {}
+    for cruise in (None, 0.5):
+        expert = ShadowExpert("guide-only", 20, markov=True, cruise_speed=cruise)
+        trace: list = []
+        info, _ = run_episode(gym.make("MirrorPark-v0"), expert.policy, sc, trace=trace)
+        assert info["is_success"]
+        top[cruise] = max(abs(t["vehicle_state"].v) for t in trace)
+    assert top[0.5] < 0.6 and top[None] > 0.9  # the tracker overshoots its reference by a few per cent

@@ -70,6 +70,9 @@ class DaggerConfig(StrictModel):
     # path starts in the other gear than the car moves (TrackingPolicy.markov): its label is a
     # function of the state alone. Needs an expert that prices the start gear (guide-only).
     expert_markov: bool = False
+    # [m/s] the expert's cruising speed on its path (None: its tracker's own, 1 m/s); a slower
+    # expert leaves a learner's error in speed or steering more room before an obstacle.
+    expert_cruise_speed: float | None = Field(None, gt=0, le=3)
     workers: int = Field(0, ge=0)  # rollout processes (0: all cores)
 
 

@@ -49,7 +49,14 @@ from .config import RLConfig, env_config
 class ShadowExpert:
     """A named planner policy asked for its action at the states the learner visits."""
 
-    def __init__(self, planner: str, max_plans: int, replan_moving: bool = False, markov: bool = False) -> None:
+    def __init__(
+        self,
+        planner: str,
+        max_plans: int,
+        replan_moving: bool = False,
+        markov: bool = False,
+        cruise_speed: float | None = None,
+    ) -> None:
         from evaluation.registry import make_policy
         from planners.common.tracking import TrackingPolicy
 
@@ -64,6 +71,8 @@ class ShadowExpert:
         inner.max_plans = max_plans
         inner.replan_moving = replan_moving
         inner.markov = markov
+        if cruise_speed is not None:
+            inner.tracker_config = inner.tracker_config.model_copy(update={"cruise_speed": cruise_speed})
         self.calls = 0
 
     def reset(self, geometry) -> None:
@@ -133,7 +142,9 @@ def _worker(job: tuple) -> tuple:
         from .policy import load_model
 
         model = load_model(str(model_path))
-    expert = ShadowExpert(dc.expert, dc.expert_max_plans, dc.expert_replans_moving, dc.expert_markov)
+    expert = ShadowExpert(
+        dc.expert, dc.expert_max_plans, dc.expert_replans_moving, dc.expert_markov, dc.expert_cruise_speed
+    )
     obs, labels, counts = rollouts(model, expert, cases, beta, dc.max_steps, seed, env_cfg)
     return obs, labels, counts, expert.calls
 
