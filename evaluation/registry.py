@@ -41,6 +41,13 @@ def _mirror_value() -> Policy:
     return _in_slot_frame(MirrorPolicy(mirror_value_config()))
 
 
+def _mirror_value_cold() -> Policy:
+    from planners.mirror.config import mirror_value_config
+    from planners.mirror.policy import MirrorPolicy
+
+    return _in_slot_frame(MirrorPolicy(mirror_value_config(value_warm_start=False)))
+
+
 def _guide_only() -> Policy:
     from planners.mirror.guide_policy import GuideOnlyPolicy
 
@@ -58,6 +65,7 @@ PLANNERS: dict[str, Callable[[], Policy]] = {
     "mirror-paper": _mirror_paper,  # the paper's fixed-angle linearisation, for comparison
     "mirror-cold": _mirror_cold,  # the default without the geometric guide (multi-start seeds)
     "mirror-value": _mirror_value,  # no guide: plans aimed and compared by a cost to go (value.py)
+    "mirror-value-cold": _mirror_value_cold,  # the same without any path as warm start (shape seeds)
     "guide-only": _guide_only,  # the geometric guide tracked, no QP (the ablation)
     "hybrid-astar": _hybrid_astar,  # the search-based baseline
 }

@@ -200,8 +200,8 @@ def test_case_files(tmp_path):
 def test_unknown_planner_is_named(tmp_path):
     with pytest.raises(
         ValueError,
-        match=r"planner: unknown .astar.; available: mirror, mirror-paper, mirror-cold, mirror-value, guide-only, "
-        r"hybrid-astar",
+        match=r"planner: unknown .astar.; available: mirror, mirror-paper, mirror-cold, mirror-value, "
+        r"mirror-value-cold, guide-only, hybrid-astar",
     ):
         evaluate("astar", _scenarios(A), tmp_path, progress=False)
     assert cli(["evaluate", "--planner", "nope", "--sample", "smoke", "--out", str(tmp_path)]) == 2

@@ -73,6 +73,9 @@ class MirrorPlannerConfig(StrictModel):
     value_retry_nodes: int = Field(300, ge=0, le=1_000_000)  # nodes in all for re-solving on the full budget
     value_reach_speed: float = Field(1.2, gt=0, le=3)  # [m/s] a goal lies at most this far down V per second left
     value_finish_radius: float = Field(3.0, ge=0)  # [m] within this of the target, also plan toward it
+    # False: no path warm-starts a candidate (neither V's cheapest way on nor the guide); the
+    # classic shapes seed them, as in mirror-cold, and V stays the terminal cost (the ablation).
+    value_warm_start: bool = True
 
 
 def mirror_value_config(**changes) -> MirrorPlannerConfig:

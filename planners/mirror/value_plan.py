@@ -139,14 +139,14 @@ class ValuePlanning:
         pl, cfg = self.pl, self.pl.cfg
         picked: list[tuple[Candidate, np.ndarray]] = []
         dirs = [1 if state.v > 0 else -1] if abs(state.v) > 0.1 else [1, -1]
-        for d in dirs:
+        for d in dirs if cfg.value_warm_start else ():
             for changes in (0, 1):
                 poses = self.V.policy_path(xi0[:3], d, changes, 1.5 * reach * pl.N)
                 if poses is not None:
                     c, seed, _ = pl.guided_seed.seed(xi0, Guide(Path.from_poses(poses), 0.0))
                     if all(c != q for q, _ in picked):
                         picked.append((c, seed))
-        if pl.guided:
+        if pl.guided and cfg.value_warm_start:
             guide = pl.guide_search(xi0[:3])
             if guide is not None:
                 c, seed, _ = pl.guided_seed.seed(xi0, guide)
