@@ -154,6 +154,7 @@ def test_a_bad_lattice_setting_is_refused_by_name():
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("warm_start", [True, False], ids=["mirror-value", "mirror-value-cold"])
 @pytest.mark.parametrize(
     "case_id",
     [
@@ -163,10 +164,20 @@ def test_a_bad_lattice_setting_is_refused_by_name():
         "angle_rw3.50_sl4.82_sw2.47_th+0_y2.60",
     ],
 )
-def test_mirror_value_parks_and_executes_the_cheapest_candidate_of_each_call(case_id):
+def test_mirror_value_parks_and_executes_the_cheapest_candidate_of_each_call(case_id, warm_start, monkeypatch):
+    """Also ``mirror-value-cold``: V the terminal cost, but neither V's way on nor the guide
+    seeds a candidate (either one asked fails the test); the classic shapes seed them."""
+    if not warm_start:
+        from planners.mirror.planner import MirrorPlanner
+        from planners.mirror.value import CostToGo
+
+        def asked(*args, **kwargs):
+            raise AssertionError("a path was asked for a warm start")
+
+        monkeypatch.setattr(CostToGo, "policy_path", asked)
+        monkeypatch.setattr(MirrorPlanner, "guide_search", asked)
     env = gym.make("MirrorPark-v0").unwrapped
-    cfg = mirror_value_config(time_limit_s=600.0)
-    policy = MirrorPolicy(cfg)
+    policy = MirrorPolicy(mirror_value_config(time_limit_s=600.0, value_warm_start=warm_start))
     info, _ = run_episode(env, policy, case_id)
     assert info["is_success"] and not info["collision"], info["failed_criterion"]
     calls = [s for s in policy.stats if s.status == "ok"]
@@ -175,34 +186,6 @@ def test_mirror_value_parks_and_executes_the_cheapest_candidate_of_each_call(cas
         costs = [c[1] for c in s.detail["candidates"] if c[1] is not None]
         assert s.detail["value"] == pytest.approx(min(costs), abs=1e-3)  # the optimisation's choice
         assert s.detail["guided"] is False
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize(
-    "case_id",
-    [
-        "parallel_rw4.50_sl6.12_sw2.50_th+0_y1.60",
-        "reverse_rw7.00_sl4.82_sw3.07_th+0_y5.20",
-        "angle_rw3.50_sl4.82_sw2.47_th+0_y2.60",
-    ],
-)
-def test_mirror_value_cold_parks_with_no_path_as_warm_start(case_id, monkeypatch):
-    """``mirror-value-cold``: V is the terminal cost, but neither V's way on nor the guide seeds
-    a candidate (either one asked would fail the test); the classic shapes seed them."""
-    from planners.mirror.planner import MirrorPlanner
-    from planners.mirror.value import CostToGo
-
-    def asked(*args, **kwargs):
-        raise AssertionError("a path was asked for a warm start")
-
-    monkeypatch.setattr(CostToGo, "policy_path", asked)
-    monkeypatch.setattr(MirrorPlanner, "guide_search", asked)
-    policy = MirrorPolicy(mirror_value_config(value_warm_start=False, time_limit_s=600.0))
-    info, _ = run_episode(gym.make("MirrorPark-v0").unwrapped, policy, case_id)
-    assert info["is_success"] and not info["collision"], info["failed_criterion"]
-    for s in policy.stats:
-        costs = [c[1] for c in s.detail["candidates"] if c[1] is not None]
-        assert s.status != "ok" or s.detail["value"] == pytest.approx(min(costs), abs=1e-3)
 
 
 def _rolls_back(plan, tau: float) -> bool:
