@@ -108,7 +108,7 @@ def collect(
                 _record_to_file(item)
                 bar.update(1)
         else:
-            run_parallel(_record_to_file, items, lambda _: bar.update(1), min(workers, len(items)))
+            run_parallel(_record_to_file, items, lambda _: bar.update(1), workers)
     except KeyboardInterrupt:
         done = len(list(episodes.glob("*.npz")))
         raise KeyboardInterrupt(f"{done} episodes stored in {episodes}; rerun the same command to resume") from None

@@ -203,7 +203,7 @@ def evaluate(
             for sc in todo:
                 keep(run_case(planner, sc))
         else:
-            run_parallel(_run_case_tuple, [(planner, sc) for sc in todo], keep, min(workers, len(todo)))
+            run_parallel(_run_case_tuple, [(planner, sc) for sc in todo], keep, workers)
     except KeyboardInterrupt:
         bar.close()
         store.compact()
@@ -226,9 +226,10 @@ def _ignore_sigint() -> None:
 
 def run_parallel(fn, items: list, keep, workers: int) -> None:
     """``keep(fn(item))`` for every item, in ``workers`` processes, in the order they finish.
-    ``fn`` must be a module-level function (it is pickled for the workers)."""
+    ``fn`` must be a module-level function (it is pickled for the workers); no more workers
+    start than there are items."""
     ctx, extra = _pool_context()
-    with ctx.Pool(workers, initializer=_init_worker, initargs=(extra,), maxtasksperchild=200) as pool:
+    with ctx.Pool(min(workers, len(items)), initializer=_init_worker, initargs=(extra,), maxtasksperchild=200) as pool:
         for out in pool.imap_unordered(fn, items, chunksize=1):
             keep(out)
 
