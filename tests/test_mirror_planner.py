@@ -451,3 +451,52 @@ def test_where_the_guide_finds_no_path_the_fallback_plans_without_it():
     info, policy = run(3)
     assert info["is_success"] and not info["collision"], info["failed_criterion"]
     assert policy.stats[0].detail["guided"] is False  # the first plan came from the fallback
+
+
+def test_a_planner_failing_twice_where_the_car_stands_gives_up(monkeypatch):
+    """The planner is deterministic: a second failed call from the same standing pose would
+    be followed by the same failure until ``max_failures``. The policy gives up at the
+    second (status ``gave_up``); a car that moved in between would plan again."""
+    from planners.base import PlanStats
+
+    calls = []
+
+    def fail(self, state, candidates=None):
+        calls.append((state.x, state.y, state.theta, state.v))
+        self.last_stats = PlanStats(0.001, "infeasible")
+        return None
+
+    monkeypatch.setattr(MirrorPlanner, "plan", fail)
+    env = gym.make("MirrorPark-v0").unwrapped
+    policy = MirrorPolicy()
+    info, _ = run_episode(env, policy, "reverse_rw6.00_sl4.82_sw2.47_th+0_y1.40")
+    assert not info["is_success"] and info["path_length"] < 0.01
+    assert len(calls) == 2 and policy.status == "gave_up"
+    assert calls[0][:3] == calls[1][:3]  # from where the car stands
+    assert [s.status for s in policy.stats] == ["infeasible", "infeasible"]
+
+
+def test_plans_that_leave_the_car_where_it_stood_are_not_asked_for_a_third_time(monkeypatch):
+    """Two calls from one standing pose whose plans (a partial one: hold still) got the car
+    nowhere: a third call from there would return the second's plan. The policy gives up
+    instead, without calling the planner again."""
+    from planners.base import PlanStats
+    from planners.mirror.plans import Plan
+
+    calls = []
+
+    def hold(self, state, candidates=None):
+        calls.append((state.x, state.y, state.theta))
+        xi = np.repeat(state.as_array()[None, :6], 4, axis=0)
+        xi[:, 3:5] = 0.0
+        stats = PlanStats(0.001, "partial", detail={"stay_cost": 5.0})
+        self.last_stats = stats
+        cmds = np.array([[0.0, state.delta]] * 3)
+        return Plan(cmds, xi, Candidate(1, None), None, self.line, xi, 1.0, (0.0, 0.0), True, stats)
+
+    monkeypatch.setattr(MirrorPlanner, "plan", hold)
+    env = gym.make("MirrorPark-v0").unwrapped
+    policy = MirrorPolicy()
+    info, _ = run_episode(env, policy, "reverse_rw6.00_sl4.82_sw2.47_th+0_y1.40")
+    assert not info["is_success"] and info["path_length"] < 0.01
+    assert len(calls) == 2 and policy.gave_up and policy.status == "gave_up"

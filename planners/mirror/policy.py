@@ -4,7 +4,9 @@ Each plan holds one direction switch. Its commands are executed as planned befor
 switch and negated after it (Eq. 42; the planner already returns them in that form).
 A new plan starts from where the car stands when the last one has run out without the
 target being met, or early when the measured state drifts from the plan's prediction.
-A failed solve stops the car and retries; it never raises.
+A failed solve stops the car (or lets it finish its verified plan) and retries a few steps
+later; it never raises. The planner is deterministic, so the policy gives up rather than
+ask it again from a standing state where its answer got the car nowhere.
 """
 
 from __future__ import annotations
@@ -46,7 +48,8 @@ class MirrorPolicy(Policy):
         self.planner: MirrorPlanner | None = None
         self.plan: Plan | None = None
         self.k = 0
-        self._wait = 0
+        self._step = 0  # control steps so far
+        self._retry_at = 0  # the step from which a failed call may be retried
 
     def reset(self, geometry: ScenarioGeometry) -> None:
         """Prepare for ``geometry``. A slot that admits no ISO-compliant pose at all (too narrow
@@ -62,12 +65,14 @@ class MirrorPolicy(Policy):
         self.params = geometry.vehicle
         self.plan = None
         self.k = 0
-        self._wait = 0
+        self._step = 0  # control steps so far
+        self._retry_at = 0  # the step from which a failed call may be retried
         self.stats = [] if fits else [PlanStats(0.0, "no_goal", detail={"reason": "no ISO pose in this slot"})]
         self.plans: list[Plan] = []
         self.gave_up = not fits
         self._failures = 0
-        self._failed_at: tuple[float, float, float] | None = None  # standing pose of the last no-guide call
+        self._failed_at: np.ndarray | None = None  # standing state of the last failed call
+        self._stood: list[np.ndarray | None] = []  # the last two calls' standing states
         self._best = {"guide_cost": math.inf, "stay_cost": math.inf}
         self._since_best = 0
 
@@ -75,6 +80,7 @@ class MirrorPolicy(Policy):
         if self.planner is None:
             raise RuntimeError("MirrorPolicy: call reset(geometry) first")
         s: VehicleState = info["vehicle_state"]
+        self._step += 1
         if not self.gave_up and (
             self.plan is None or self.k >= len(self.plan.commands) or self._drifted(s) or self._idle(s)
         ):
@@ -101,25 +107,39 @@ class MirrorPolicy(Policy):
         )
 
     def _replan(self, s: VehicleState) -> None:
-        if self._wait > 0:
-            self._wait -= 1
-            self.plan = None
+        ongoing = self.plan is not None and self.k < len(self.plan.commands)
+        if self._step < self._retry_at:
+            if not ongoing:
+                self.plan = None
             return
+        # The planner is deterministic: from the standing state of the last two calls (pose,
+        # steering, speed and lagged acceleration), a third returns what the second did, which
+        # got the car nowhere (measured: 6 identical partial plans of 935 QPs each from a
+        # standing car, until ``patience`` ended it). Plans that only turn the wheels are
+        # progress: the steering is part of the state.
+        here = s.as_array() if abs(s.v) < IDLE_SPEED else None
+        stood = here is not None and len(self._stood) == 2
+        if stood and all(p is not None and _same_state(here, p) for p in self._stood):
+            self.gave_up = True  # the verified plan, if any is left, is finished (below)
+            if not ongoing:
+                self.plan = None
+            return
+        self._stood = [*self._stood[-1:], here]
         plan = self.planner.plan(s)
         if plan is None:
             self.stats.append(self.planner.last_stats)
-            if self.plan is not None and self.k < len(self.plan.commands):
-                return  # keep to the verified plan rather than brake blindly while moving
-            self.plan = None
-            self._wait = self.retry_every
+            # Retry after ``retry_every`` steps, keeping to the verified plan, if any is left,
+            # rather than brake blindly while moving (measured: a failed call while a plan
+            # ran was repeated at every step its idling lasted: 39 calls of ~500 QPs in one episode).
+            self._retry_at = self._step + self.retry_every + 1
             self._failures += 1
-            # The guide search is deterministic: finding none twice from where the car stands,
-            # it will find none again (measured: 8 identical no-guide calls per stuck episode).
-            stuck = self.planner.last_stats.status == "no_guide" and abs(s.v) < 0.05
-            here = (s.x, s.y, s.theta) if stuck else None
-            again = here is not None and self._failed_at is not None and _same_pose(here, self._failed_at)
+            # Failing twice from one standing state, it will fail again (measured: 8
+            # identical failed calls per stuck episode).
+            again = here is not None and self._failed_at is not None and _same_state(here, self._failed_at)
             self._failed_at = here
             self.gave_up = self._failures >= self.max_failures or again
+            if not ongoing:
+                self.plan = None
             return
         self._failures = 0
         self._failed_at = None
@@ -155,6 +175,12 @@ class MirrorPolicy(Policy):
         return super().status
 
 
-def _same_pose(a: tuple[float, float, float], b: tuple[float, float, float]) -> bool:
-    """Within 1 cm and 0.01 rad."""
-    return math.hypot(a[0] - b[0], a[1] - b[1]) < 0.01 and abs(wrap_angle(a[2] - b[2])) < 0.01
+def _same_state(a: np.ndarray, b: np.ndarray) -> bool:
+    """States (x, y, theta, v, a, delta) within 1 cm, 0.01 rad, 0.01 m/s, 0.05 m/s^2 and 0.01 rad."""
+    return bool(
+        math.hypot(a[0] - b[0], a[1] - b[1]) < 0.01
+        and abs(wrap_angle(a[2] - b[2])) < 0.01
+        and abs(a[3] - b[3]) < 0.01
+        and abs(a[4] - b[4]) < 0.05
+        and abs(a[5] - b[5]) < 0.01
+    )
