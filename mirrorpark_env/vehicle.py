@@ -172,6 +172,32 @@ class TruthModel:
             rows.append((x, y, th, v, a_cmd + da * ea1, delta_cmd + dd * ede, abs(chord)))
         return rows
 
+    def step_batch(self, states: np.ndarray, a_cmd: np.ndarray, delta_cmd: np.ndarray) -> np.ndarray:
+        """``step`` for K states at once, each with its own commands: (K, n, 6) sub-step
+        states (x, y, theta, v, a, delta); the same arithmetic, vectorised over K (many
+        closed-loop rollouts advanced together)."""
+        p = self.params
+        st = np.asarray(states, float).reshape(-1, 6)
+        a_cmd = np.clip(np.asarray(a_cmd, float), p.a_min, p.a_max)
+        delta_cmd = np.clip(np.asarray(delta_cmd, float), -p.max_steer, p.max_steer)
+        x, y, th, v = st[:, 0].copy(), st[:, 1].copy(), st[:, 2].copy(), st[:, 3].copy()
+        da, dd = st[:, 4] - a_cmd, st[:, 5] - delta_cmd
+        h, inv_l = self.h, 1.0 / p.wheelbase
+        out = np.empty((len(st), self.n, 6))
+        for k, (ea0, ea1, edm, ede) in enumerate(zip(self._ea_start, self._ea_end, self._ed_mid, self._ed_end)):
+            v1 = np.clip(v + a_cmd * h + da * ea0 * self._dv_lag, p.v_min, p.v_max)
+            ds = 0.5 * (v + v1) * h
+            dth = ds * np.tan(delta_cmd + dd * edm) * inv_l
+            half = 0.5 * dth
+            small = np.abs(half) <= 1e-12
+            chord = np.where(small, ds, ds * np.sin(half) / np.where(small, 1.0, half))
+            x = x + chord * np.cos(th + half)
+            y = y + chord * np.sin(th + half)
+            th = th + dth
+            v = v1
+            out[:, k] = np.stack((x, y, th, v, a_cmd + da * ea1, delta_cmd + dd * ede), axis=1)
+        return out
+
     def rollout(self, state, commands) -> np.ndarray:
         """States at the end of every sub-step under a sequence of (a_cmd, delta_cmd), one
         per control step: (steps * n, 7), the rows of chaining ``step`` (to rounding).

@@ -94,6 +94,32 @@ def test_vectorised_rollout_equals_chained_steps(substep, saturating):
     assert (chained[:, 3].max() >= P.v_max - 1e-12) == saturating
 
 
+def test_batched_steps_equal_single_steps():
+    """``step_batch`` (many closed-loop rollouts advanced together) is ``step`` row for row:
+    standing cars, straight wheels, saturated speeds and commands beyond their bounds."""
+    m = TruthModel(P, 0.1, 0.05)
+    rng = np.random.default_rng(0)
+    k = 200
+    states = np.column_stack(
+        [
+            rng.uniform(-5, 5, k),
+            rng.uniform(-5, 5, k),
+            rng.uniform(-3, 3, k),
+            rng.uniform(-2.5, 2.5, k),
+            rng.uniform(-3, 3, k),
+            rng.uniform(-0.6, 0.6, k),
+        ]
+    )
+    a_cmd, d_cmd = rng.uniform(-4, 4, k), rng.uniform(-0.8, 0.8, k)
+    states[:5, 3], states[:5, 4], a_cmd[:5] = 0.0, 0.0, 0.0  # standing still
+    states[5:10, 5], d_cmd[5:10] = 0.0, 0.0  # straight
+    states[10:15, 3], a_cmd[10:15] = P.v_max, 4.0  # saturating
+    batch = m.step_batch(states, a_cmd, d_cmd)
+    single = np.array([m.step(states[i], a_cmd[i], d_cmd[i])[:, :6] for i in range(k)])
+    assert batch.shape == (k, 2, 6)
+    assert np.abs(batch - single).max() < 1e-12
+
+
 @pytest.mark.parametrize("lags", [False, True])
 def test_theorem_2_negated_commands_give_the_point_reflected_path(lags):
     """Eq. (7)-(9): same start, opposite speed, negated commands -> x, y negated, theta equal."""

@@ -120,18 +120,15 @@ class ShapeSeeds:
         self, xi0: np.ndarray, cands: list[Candidate], line: MirrorLine, merit: Callable[[np.ndarray], float]
     ) -> list[tuple[Candidate, np.ndarray]]:
         """Each candidate's best seed (by ``merit``), best candidates first."""
-        scored = []
-        for cand in cands:
-            swings = [None] if cand.switch is None else [None, TURN, *self.cfg.seed_swings]
-            for sw in swings:
-                real = self.seed(xi0, cand, line, sw)
-                scored.append((merit(real), cand, real))
-        scored.sort(key=lambda t: t[0])
+        pairs = [(c, sw) for c in cands for sw in ([None] if c.switch is None else [None, TURN, *self.cfg.seed_swings])]
+        reals = self.seeds(xi0, pairs, line)
+        scored = sorted(((merit(real), n) for n, real in enumerate(reals)), key=lambda t: t[0])
         out, seen = [], set()
-        for _, cand, real in scored:
+        for _, n in scored:
+            cand = pairs[n][0]
             if cand not in seen:
                 seen.add(cand)
-                out.append((cand, real))
+                out.append((cand, reals[n]))
         return out
 
     def seed(self, xi0: np.ndarray, cand: Candidate, line: MirrorLine, swing: float | None = None) -> np.ndarray:
@@ -140,8 +137,11 @@ class ShapeSeeds:
         Speed: a sine over each segment, sized to the distance the segment has to cover.
         Steering: a heading controller tracking ``_heading_ref``.
         """
+        return self.seeds(xi0, [(cand, swing)], line)[0]
+
+    def seeds(self, xi0: np.ndarray, pairs: list[tuple[Candidate, float | None]], line: MirrorLine) -> np.ndarray:
+        """``seed`` of each (candidate, swing), rolled out together: (K, 2N + 1, 6)."""
         N, dt, p = self.N, self.cfg.dt, self.p
-        s = cand.switch if cand.switch is not None else N
         tx, ty, tth = self.g.target
         tth = unwrap_near(tth, xi0[XI_TH])
         u_t = np.array([math.cos(tth), math.sin(tth)])
@@ -150,29 +150,35 @@ class ShapeSeeds:
             lam = (xi0[XI_Y] - S_guess[1]) / u_t[1] if abs(u_t[1]) > 1e-6 else 0.0
             S_guess = S_guess + max(lam, 0.0) * u_t
         p0 = xi0[:2]
-        if cand.switch is not None:
-            d1 = float(np.hypot(*(S_guess - p0))) + 0.3
-        else:
-            d1 = float(np.hypot(tx - p0[0], ty - p0[1]))
         d2 = float(np.hypot(S_guess[0] - tx, S_guess[1] - ty)) + 0.3
-        T1, T2 = max(s, 1) * dt, max(N - s, 1) * dt
-        vc1 = min(1.5, d1 * math.pi / (2 * T1))
-        vc2 = min(1.5, d2 * math.pi / (2 * T2))
-        out = [xi0]
-        state = xi0.copy()
+        # The references of every seed at every step: speed and heading.
+        v_ref, th_ref = np.empty((len(pairs), N)), np.empty((len(pairs), N))
+        for k, (cand, swing) in enumerate(pairs):
+            s = cand.switch if cand.switch is not None else N
+            if cand.switch is not None:
+                d1 = float(np.hypot(*(S_guess - p0))) + 0.3
+            else:
+                d1 = float(np.hypot(tx - p0[0], ty - p0[1]))
+            T1, T2 = max(s, 1) * dt, max(N - s, 1) * dt
+            vc1 = min(1.5, d1 * math.pi / (2 * T1))
+            vc2 = min(1.5, d2 * math.pi / (2 * T2))
+            for i in range(N):
+                seg1 = cand.switch is None or i < s
+                tau = (i + 1) / s if seg1 else (i + 1 - s) / max(N - s, 1)
+                d = cand.direction if seg1 else -cand.direction
+                v_ref[k, i] = d * (vc1 if seg1 else vc2) * math.sin(math.pi * min(tau, 1.0))
+                th_ref[k, i] = self._heading_ref(cand, line, swing, seg1, tau, tth, xi0[XI_TH])
+        sgn = np.where(v_ref >= 0, 1.0, -1.0)
+        out = np.empty((len(pairs), 1 + N * self.coarse.n, 6))
+        out[:, 0] = xi0[:6]
+        state = np.repeat(np.asarray(xi0[:6], float)[None], len(pairs), axis=0)
         for i in range(N):
-            seg1 = cand.switch is None or i < s
-            tau = (i + 1) / s if seg1 else (i + 1 - s) / max(N - s, 1)
-            d = cand.direction if seg1 else -cand.direction
-            v_ref = d * (vc1 if seg1 else vc2) * math.sin(math.pi * min(tau, 1.0))
-            th_ref = self._heading_ref(cand, line, swing, seg1, tau, tth, xi0[XI_TH])
-            a_cmd = max(p.a_min, min(p.a_max, 3.0 * (v_ref - state[XI_V]) - 0.5 * state[XI_A]))
-            sgn = 1.0 if v_ref >= 0 else -1.0
-            d_cmd = max(-p.max_steer, min(p.max_steer, 2.5 * (th_ref - state[XI_TH]) * sgn))
-            sub = self.coarse.step(state, a_cmd, d_cmd)[:, :6]
-            out.extend(sub)
-            state = sub[-1]
-        return np.array(out)
+            a_cmd = np.clip(3.0 * (v_ref[:, i] - state[:, XI_V]) - 0.5 * state[:, XI_A], p.a_min, p.a_max)
+            d_cmd = np.clip(2.5 * (th_ref[:, i] - state[:, XI_TH]) * sgn[:, i], -p.max_steer, p.max_steer)
+            sub = self.coarse.step_batch(state, a_cmd, d_cmd)
+            out[:, 1 + i * self.coarse.n : 1 + (i + 1) * self.coarse.n] = sub
+            state = sub[:, -1]
+        return out
 
     def _heading_ref(self, cand, line, swing, seg1: bool, tau: float, tth: float, th0: float) -> float:
         """Heading to steer toward at phase ``tau`` of a segment: for parallel parking an
