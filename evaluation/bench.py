@@ -43,10 +43,11 @@ def planning_times(planners: list[str], case_ids: list[str]) -> dict:
 
     out = {}
     for p in planners:
-        times, wall, setup, ok = [], [], [], 0
+        times, qps, wall, setup, ok = [], [], [], [], 0
         for cid in case_ids:
             row = run_case(p, Scenario.from_case_id(cid))  # grid ids: exact
             times += row.get("plan_times_ms") or []
+            qps += list(row.get("plan_qp_solves") or [])
             wall.append(row["episode_wall_s"])
             setup.append(row.get("setup_ms", 0.0))
             ok += bool(row.get("success"))
@@ -58,6 +59,9 @@ def planning_times(planners: list[str], case_ids: list[str]) -> dict:
             "plan_ms_median": float(np.median(t)) if len(t) else None,
             "plan_ms_p95": float(np.percentile(t, 95)) if len(t) else None,
             "plan_ms_mean": float(t.mean()) if len(t) else None,
+            # The work per call, the same on any machine (QP solves; 0 for search planners).
+            "qp_per_call_median": float(np.median(qps)) if qps else None,
+            "qp_per_call_p95": float(np.percentile(qps, 95)) if qps else None,
             "setup_ms_median": float(np.median(setup)) if setup else None,  # per episode, at reset
             "episode_wall_s_median": float(np.median(wall)) if wall else None,
         }

@@ -153,6 +153,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         for p, r in res["planners"].items():
             print(
                 f"{p}: plan ms median {r['plan_ms_median']}, p95 {r['plan_ms_p95']} over {r['calls']} calls, "
+                f"QP solves per call median {r['qp_per_call_median']}, p95 {r['qp_per_call_p95']}, "
                 f"{r['successes']}/{r['cases']} parked"
             )
         for k, v in res["ratios"].items():
