@@ -210,8 +210,11 @@ def test_mirror_value_plans_end_settled_so_no_stop_rolls_back_across_zero():
     results = {}
     for settled in (False, True):
         env = gym.make("MirrorPark-v0").unwrapped
-        # the value mode's first settings, under which it was measured (finish radius 3 m, 5 deg cells)
-        cfg = MirrorPlannerConfig(guide=False, value=True, end_settled=settled, time_limit_s=600.0)
+        # the value mode's first settings, under which it was measured (finish radius 3 m, 5 deg
+        # cells, scouting on 10 nodes: on 5 the settled run parks with 3 switches, none a roll-back)
+        cfg = MirrorPlannerConfig(
+            guide=False, value=True, end_settled=settled, time_limit_s=600.0, value_scout_node_limit=10
+        )
         policy = MirrorPolicy(cfg)
         info, _ = run_episode(env, policy, case)
         results[settled] = (info, [_rolls_back(p, env.params.tau_a) for p in policy.plans])

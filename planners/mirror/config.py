@@ -69,7 +69,7 @@ class MirrorPlannerConfig(StrictModel):
     value_candidates: int = Field(3, ge=1, le=20)  # switch candidates refined where V is blind
     value_updates: int = Field(2, ge=1, le=10)  # solves of the leading candidate, its goal moved down V each time
     value_iterations: int = Field(3, ge=1, le=100)  # SCP rounds per solve
-    value_scout_node_limit: int = Field(10, ge=1, le=100_000)  # branch-and-bound nodes per MIQP while scouting
+    value_scout_node_limit: int = Field(5, ge=1, le=100_000)  # branch-and-bound nodes per MIQP while scouting
     value_retry_nodes: int = Field(100, ge=0, le=1_000_000)  # nodes in all for re-solving on the full budget
     value_reach_speed: float = Field(1.2, gt=0, le=3)  # [m/s] a goal lies at most this far down V per second left
     value_finish_radius: float = Field(3.0, ge=0)  # [m] within this of the target, also plan toward it
