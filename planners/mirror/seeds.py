@@ -151,14 +151,13 @@ class ShapeSeeds:
             S_guess = S_guess + max(lam, 0.0) * u_t
         p0 = xi0[:2]
         d2 = float(np.hypot(S_guess[0] - tx, S_guess[1] - ty)) + 0.3
+        to_switch = float(np.hypot(*(S_guess - p0))) + 0.3  # first segment's distance with a switch
+        to_target = float(np.hypot(tx - p0[0], ty - p0[1]))  # ... and without one
         # The references of every seed at every step: speed and heading.
         v_ref, th_ref = np.empty((len(pairs), N)), np.empty((len(pairs), N))
         for k, (cand, swing) in enumerate(pairs):
             s = cand.switch if cand.switch is not None else N
-            if cand.switch is not None:
-                d1 = float(np.hypot(*(S_guess - p0))) + 0.3
-            else:
-                d1 = float(np.hypot(tx - p0[0], ty - p0[1]))
+            d1 = to_switch if cand.switch is not None else to_target
             T1, T2 = max(s, 1) * dt, max(N - s, 1) * dt
             vc1 = min(1.5, d1 * math.pi / (2 * T1))
             vc2 = min(1.5, d2 * math.pi / (2 * T2))
