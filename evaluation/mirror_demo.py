@@ -26,11 +26,11 @@ from planners.mirror.policy import MirrorPolicy
 
 from .figures import _plt
 
-# One standard-sample case per type in which a plan holds its switch (many plans switch
-# only at their ends, where the mirror has nothing to show): Fig. 19-like manoeuvres.
+# One case per type in which a plan of the default planner holds its switch (many plans
+# switch only at their ends, where the mirror has nothing to show): Fig. 19-like manoeuvres.
 DEMO_CASES = {
-    "parallel": Scenario.from_case_id("parallel_rw4.50_sl5.82_sw2.50_th+30_y1.30"),
-    "reverse": Scenario.from_case_id("reverse_rw6.00_sl4.82_sw2.02_th-80_y4.00"),
+    "parallel": Scenario.from_case_id("parallel_rw3.50_sl6.82_sw2.50_th+0_y1.50"),
+    "reverse": Scenario.from_case_id("reverse_rw7.00_sl4.82_sw3.07_th+0_y5.20"),
     "angle": Scenario.from_case_id("angle_rw4.50_sl4.82_sw1.92_th+10_y1.80"),
 }
 
@@ -114,8 +114,8 @@ def _focus(g: ScenarioGeometry, states: np.ndarray) -> np.ndarray:
 
 
 def _plan_goal(plan: Plan, g: ScenarioGeometry) -> tuple[float, float, float]:
-    """The real goal a plan was made for: the guide's pose it reported, else the target."""
-    goal = (plan.stats.detail.get("goal") if plan.stats is not None else None) or g.target
+    """The real goal a plan was made for (the target, or a pose on the way), mirrored through its switch."""
+    goal = plan.goal or g.target
     return tuple(float(v) for v in goal)
 
 

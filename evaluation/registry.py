@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 
 from planners.base import Policy
 
@@ -14,38 +15,12 @@ def _in_slot_frame(policy: Policy) -> Policy:
     return InSlotFrame(policy)
 
 
-def _mirror() -> Policy:
+def _mirror(preset: str) -> Policy:
+    """``MirrorPolicy`` with the settings ``planners.mirror.config.<preset>()``."""
+    from planners.mirror import config
     from planners.mirror.policy import MirrorPolicy
 
-    return _in_slot_frame(MirrorPolicy())
-
-
-def _mirror_paper() -> Policy:
-    from planners.mirror.config import MirrorPlannerConfig
-    from planners.mirror.policy import MirrorPolicy
-
-    return _in_slot_frame(MirrorPolicy(MirrorPlannerConfig(linearisation="paper")))
-
-
-def _mirror_cold() -> Policy:
-    from planners.mirror.config import MirrorPlannerConfig
-    from planners.mirror.policy import MirrorPolicy
-
-    return _in_slot_frame(MirrorPolicy(MirrorPlannerConfig(guide=False)))
-
-
-def _mirror_value() -> Policy:
-    from planners.mirror.config import mirror_value_config
-    from planners.mirror.policy import MirrorPolicy
-
-    return _in_slot_frame(MirrorPolicy(mirror_value_config()))
-
-
-def _mirror_value_cold() -> Policy:
-    from planners.mirror.config import mirror_value_config
-    from planners.mirror.policy import MirrorPolicy
-
-    return _in_slot_frame(MirrorPolicy(mirror_value_config(value_warm_start=False)))
+    return _in_slot_frame(MirrorPolicy(getattr(config, preset)()))
 
 
 def _guide_only() -> Policy:
@@ -61,13 +36,19 @@ def _hybrid_astar() -> Policy:
 
 
 PLANNERS: dict[str, Callable[[], Policy]] = {
-    "mirror": _mirror,  # SCP re-linearisation (the default)
-    "mirror-paper": _mirror_paper,  # the paper's fixed-angle linearisation, for comparison
-    "mirror-cold": _mirror_cold,  # the default without the geometric guide (multi-start seeds)
-    "mirror-value": _mirror_value,  # no guide: plans aimed and compared by a cost to go (value.py)
-    "mirror-value-cold": _mirror_value_cold,  # the same without any path as warm start (shape seeds)
+    "mirror": partial(_mirror, "MirrorPlannerConfig"),  # the default: candidates aimed and compared by a cost to go
+    "mirror-cold": partial(_mirror, "cold_config"),  # the same without any path as warm start (shape seeds)
+    "mirror-paper": partial(_mirror, "paper_config"),  # the paper's fixed-angle linearisation, multi-start
+    "mirror-guided": partial(_mirror, "guided_config"),  # the geometric guide chooses, the QP polishes (the ablation)
+    "mirror-multistart": partial(_mirror, "multistart_config"),  # neither guide nor cost to go: shape seeds
     "guide-only": _guide_only,  # the geometric guide tracked, no QP (the ablation)
     "hybrid-astar": _hybrid_astar,  # the search-based baseline
+}
+
+# Names that changed meaning or were dropped, with what to use instead (make_policy says so).
+RENAMED = {
+    "mirror-value": "mirror (renamed on 2026-12-02, when it became the default)",
+    "mirror-value-cold": "mirror-cold (renamed on 2026-12-02)",
 }
 
 
@@ -103,6 +84,8 @@ def make_policy(name: str) -> Policy:
 
         return RLPolicy(name[3:])
     factory = PLANNERS.get(name)
+    if factory is None and name in RENAMED:
+        raise ValueError(f"planner: {name!r} is now {RENAMED[name]}; available: {', '.join(available())}, rl:PATH")
     if factory is None:
         raise ValueError(f"planner: unknown {name!r}; available: {', '.join(available())}, rl:PATH")
     return factory()

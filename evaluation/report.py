@@ -53,7 +53,7 @@ def write_report(
     planners = sorted(df["planner"].unique())
     if baseline is None:  # the paper compares against its search-based baseline
         baseline = "hybrid-astar" if "hybrid-astar" in planners else None
-    main = "mirror" if "mirror" in planners else planners[0]
+    main = "mirror" if "mirror" in planners else next((p for p in planners if p != baseline), planners[0])
     figs = [fig_success_by_type(df, planners, out)]
     figs.append(
         _per_type_lines(

@@ -1,6 +1,6 @@
 """How far each linearised model's prediction lies from the truth: the first planning call
 of every smoke case, planned with the paper's fixed-angle linearisation (Eqs. 22-32,
-``mirror-paper``) and with the Jacobians about each rollout (SCP, ``mirror-cold``).
+``mirror-paper``) and with the Jacobians about each rollout (SCP, ``mirror-multistart``).
 
 For every QP solved in that call, the states the QP predicts are compared with the
 truth model's rollout of the same commands (in the planned frame): the largest position
@@ -20,13 +20,13 @@ import numpy as np
 
 import mirrorpark_env  # noqa: F401  (registers MirrorPark-v0)
 from mirrorpark_env.grid import default_grid_cases
-from planners.mirror.config import MirrorPlannerConfig
+from planners.mirror.config import MirrorPlannerConfig, multistart_config, paper_config
 from planners.mirror.frames import XI_TH, to_planned
 from planners.mirror.planner import MirrorPlanner
 
 VARIANTS = {
-    "paper (fixed angle, Eqs. 22-32)": MirrorPlannerConfig(guide=False, linearisation="paper"),
-    "SCP (Jacobians about each rollout)": MirrorPlannerConfig(guide=False),
+    "paper (fixed angle, Eqs. 22-32)": paper_config(),
+    "SCP (Jacobians about each rollout)": multistart_config(),
 }
 
 

@@ -200,10 +200,12 @@ def test_case_files(tmp_path):
 def test_unknown_planner_is_named(tmp_path):
     with pytest.raises(
         ValueError,
-        match=r"planner: unknown .astar.; available: mirror, mirror-paper, mirror-cold, mirror-value, "
-        r"mirror-value-cold, guide-only, hybrid-astar",
+        match=r"planner: unknown .astar.; available: mirror, mirror-cold, mirror-paper, mirror-guided, "
+        r"mirror-multistart, guide-only, hybrid-astar",
     ):
         evaluate("astar", _scenarios(A), tmp_path, progress=False)
+    with pytest.raises(ValueError, match=r"planner: 'mirror-value' is now mirror \(renamed on 2026-12-02"):
+        evaluate("mirror-value", _scenarios(A), tmp_path, progress=False)
     assert cli(["evaluate", "--planner", "nope", "--sample", "smoke", "--out", str(tmp_path)]) == 2
 
 

@@ -15,6 +15,7 @@ import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario, VehicleParams
 from planners.base import run_episode
 from planners.common.clearance import START_RELIEF, gaps
+from planners.mirror.config import guided_config
 from planners.mirror.guide import GuideSearch
 from planners.mirror.mirror_line import (
     parallel_dark_point,
@@ -108,7 +109,7 @@ def test_parallel_switch_pose_is_a_forward_arc_from_the_target():
 def test_guided_plan_has_one_switch_standing_and_ends_at_rest():
     env = gym.make("MirrorPark-v0").unwrapped
     _, info = env.reset(options={"scenario": "reverse_rw6.00_sl4.82_sw2.37_th+0_y1.20"})
-    planner = MirrorPlanner(info["geometry"])
+    planner = MirrorPlanner(info["geometry"], guided_config())
     plan = planner.plan(info["vehicle_state"])
     assert plan is not None and plan.stats.detail["guided"]
     v = plan.states[:, 3]
@@ -128,9 +129,9 @@ def test_guided_plan_has_one_switch_standing_and_ends_at_rest():
         "angle_rw4.00_sl4.82_sw2.42_th+0_y1.30",  # its second plan ends millimetres from a side
     ],
 )
-def test_hard_cases_park(case_id):
+def test_hard_cases_park_with_the_guide(case_id):
     env = gym.make("MirrorPark-v0").unwrapped
-    policy = MirrorPolicy()
+    policy = MirrorPolicy(guided_config())  # the registry's "mirror-guided"
     info, _ = run_episode(env, policy, case_id)
     assert info["is_success"], (info["failed_criterion"], [s.status for s in policy.stats])
     assert policy.setup_time_s > 0  # the slot's tables are built at reset, not in a call

@@ -13,7 +13,7 @@ from fixed_cases import EASY_CASES
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario, VehicleParams
 from planners.base import run_episode
-from planners.mirror.config import MirrorPlannerConfig
+from planners.mirror.config import MirrorPlannerConfig, guided_config, multistart_config, paper_config
 from planners.mirror.frames import FLIP, planned_controls, to_planned
 from planners.mirror.mirror_line import (
     mirror_line,
@@ -29,6 +29,9 @@ from planners.mirror.solvers import INACTIVE, QP, BranchAndBound, Disjunction, E
 
 P = VehicleParams.table_ii()
 R_MIN = 2.5 / math.tan(0.6)  # 3.6542 m
+# Branch and bound's wall-clock safety net (5 s per MIQP) out of the way: on a loaded machine
+# it fired in one of these calls and changed the outcome; the work budget (nodes) decides.
+NO_NET = 600.0
 
 
 # ------------------------------------------------------------------ mirror line
@@ -278,38 +281,50 @@ def test_the_papers_linearised_model_against_a_step_by_hand():
 
 
 def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_meets(monkeypatch):
-    """The MIQP of a real planning call (a parallel start at +40 deg), cut down to as many of
-    its disjunctions as enumeration can take (<= 4,096 assignments; the rows of the others
-    stay switched off), solved by branch and bound with the planner's own backend and node
-    budget, has the optimum that exhaustive enumeration finds."""
+    """The first MIQP of a real planning call (a parallel start at +40 deg) with five or more
+    disjunctions, cut down to as many of them as enumeration can take (<= 4,096 assignments;
+    the rows of the others stay switched off). Branch and bound with the planner's backend
+    on its full node budget (re-solves and refinements) has the optimum that exhaustive
+    enumeration finds; on the scouting budget it finds it too, or says it ran out of nodes
+    (the planner then re-solves a call that found no plan) and never claims a lower cost."""
     import dataclasses
 
     from planners.mirror import solvers
 
+    cfg = MirrorPolicy().config
     captured = []
     solve = solvers.BranchAndBound.solve
 
+    def cut_down(disj):
+        keep = []
+        for k, d in enumerate(disj):
+            if math.prod(len(disj[j].rows) for j in keep) * len(d.rows) > 4096:
+                break
+            keep.append(k)
+        return keep
+
     def spy(self, qp, disj, active, preferred=None):
-        if not captured:
+        if not captured and len(cut_down(disj)) >= 5:
             copy = dataclasses.replace(qp, h_l=qp.h_l.copy(), c=qp.c.copy())
-            captured.append((self, copy, list(disj), active.copy(), list(preferred or [])))
+            captured.append((self.qp_backend, copy, list(disj), active.copy(), list(preferred or [])))
         return solve(self, qp, disj, active, preferred)
 
     monkeypatch.setattr(solvers.BranchAndBound, "solve", spy)
     run_episode(gym.make("MirrorPark-v0"), MirrorPolicy(), "parallel_rw4.00_sl5.02_sw2.50_th+40_y1.10")
-    assert captured, "the planner met no disjunctive MIQP"
-    bb, qp, disj, active, preferred = captured[0]
-    keep = []
-    for k, d in enumerate(disj):
-        if math.prod(len(disj[j].rows) for j in keep) * len(d.rows) > 4096:
-            break
-        keep.append(k)
+    assert captured, "the planner met no MIQP of five or more disjunctions"
+    backend, qp, disj, active, preferred = captured[0]
+    keep = cut_down(disj)
     disj, preferred = [disj[k] for k in keep], [preferred[k] for k in keep]
-    assert len(disj) >= 5 and bb.node_limit == MirrorPolicy().config.node_limit
-    res = solve(bb, qp, disj, active, preferred)
-    ref = Enumeration(bb.qp_backend).solve(qp, disj, active)
-    assert res.status == "solved" and res.nodes < ref.qp_solves
-    assert res.obj == pytest.approx(ref.obj, rel=1e-4, abs=1e-6)
+    ref = Enumeration(backend).solve(qp, disj, active)
+    full = solve(BranchAndBound(backend, cfg.node_limit, NO_NET), qp, disj, active, preferred)
+    assert full.status == "solved" and full.nodes < ref.qp_solves
+    assert full.obj == pytest.approx(ref.obj, rel=1e-4, abs=1e-6)
+    scout = solve(BranchAndBound(backend, cfg.value_scout_node_limit, NO_NET), qp, disj, active, preferred)
+    assert scout.nodes <= cfg.value_scout_node_limit
+    if scout.status == "solved":
+        assert scout.obj == pytest.approx(ref.obj, rel=1e-4, abs=1e-6)
+    else:
+        assert scout.status == "node_limit" and (scout.x is None or scout.obj >= ref.obj - 1e-6)
 
 
 def test_the_policy_replans_once_the_rest_of_its_plan_would_only_creep():
@@ -333,7 +348,7 @@ def test_the_policy_replans_once_the_rest_of_its_plan_would_only_creep():
 
 def test_giving_up_mid_plan_finishes_the_verified_plan_rather_than_braking_off_it():
     # With the lag, a car at v = 0 may still be accelerating: braking there, wheels held,
-    # rolled a give-up 2.7 cm into a neighbour (mirror-value, parallel_rw4.00_sl5.22_sw2.50_th+90_y0.80).
+    # rolled a give-up 2.7 cm into a neighbour (the value mode, parallel_rw4.00_sl5.22_sw2.50_th+90_y0.80).
     from types import SimpleNamespace
 
     from mirrorpark_env import to_action
@@ -365,16 +380,11 @@ def test_a_slot_without_an_iso_pose_is_refused_at_once():
     assert not info["is_success"] and info["path_length"] == 0.0
 
 
-# Branch and bound's wall-clock safety net (5 s per MIQP) out of the way: on a loaded machine
-# it fired in one of these calls and changed the outcome; the work budget (nodes) decides.
-NO_NET = 600.0
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("case_id", EASY_CASES)
-def test_mirror_cold_parks_a_fixed_case_of_each_type(case_id):
-    """Without the geometric guide: multi-start shape seeds, SCP and branch and bound alone."""
-    policy = MirrorPolicy(MirrorPlannerConfig(guide=False, time_limit_s=NO_NET))  # as registry's "mirror-cold"
+def test_mirror_multistart_parks_a_fixed_case_of_each_type(case_id):
+    """Neither guide nor cost to go: multi-start shape seeds, SCP and branch and bound alone."""
+    policy = MirrorPolicy(multistart_config(time_limit_s=NO_NET))  # the registry's "mirror-multistart"
     info, _ = run_episode(gym.make("MirrorPark-v0").unwrapped, policy, case_id)
     assert info["is_success"], (info["failed_criterion"], info["vehicle_state"])
     assert not any(s.detail.get("guided") for s in policy.stats)
@@ -392,7 +402,7 @@ def test_mirror_cold_parks_a_fixed_case_of_each_type(case_id):
 )
 def test_mirror_paper_parks_a_fixed_reverse_and_angle_case(case_id):
     """The paper's method as written (fixed-angle linearisation, no guide) parks these."""
-    policy = MirrorPolicy(MirrorPlannerConfig(linearisation="paper", time_limit_s=NO_NET))  # "mirror-paper"
+    policy = MirrorPolicy(paper_config(time_limit_s=NO_NET))  # the registry's "mirror-paper"
     info, _ = run_episode(gym.make("MirrorPark-v0").unwrapped, policy, case_id)
     assert info["is_success"], (info["failed_criterion"], info["vehicle_state"])
     assert not any(s.detail.get("guided") for s in policy.stats)
@@ -441,7 +451,7 @@ def test_where_the_guide_finds_no_path_the_fallback_plans_without_it():
     env = gym.make("MirrorPark-v0").unwrapped
 
     def run(calls: int):
-        policy = MirrorPolicy(MirrorPlannerConfig(fallback_calls=calls, time_limit_s=NO_NET))
+        policy = MirrorPolicy(guided_config(fallback_calls=calls, time_limit_s=NO_NET))
         info, _ = run_episode(env, policy, case_id)
         return info, policy
 

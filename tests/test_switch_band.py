@@ -12,6 +12,7 @@ import pytest
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env import VehicleParams
 from planners.base import run_episode
+from planners.mirror.config import MirrorPlannerConfig, guided_config
 from planners.mirror.mirror_line import band_margin, parallel_upper_bound, reach_lower_bound, switch_band
 from planners.mirror.policy import MirrorPolicy
 
@@ -77,22 +78,34 @@ class _Recording(MirrorPolicy):
         return action
 
 
-# Cases in which plans hold their switch (in many episodes plans switch only at their
-# ends); in the last three, before the band rows, a switch lay 1.3 cm to 25 cm outside.
-SWITCHING = (
-    "parallel_rw4.50_sl5.82_sw2.50_th+30_y1.30",
-    "angle_rw4.50_sl4.82_sw1.92_th+10_y1.80",
-    "parallel_rw3.50_sl6.82_sw2.50_th+0_y1.50",
-    "reverse_rw6.00_sl4.82_sw2.02_th-80_y4.00",
-    "angle_rw4.00_sl4.82_sw3.07_th-10_y2.40",
-)
+# Cases in which plans hold their switch (in many episodes plans switch only at their ends),
+# for the default planner (``mirror``) and for the guided one (``mirror-guided``: in its last
+# three cases, before the band rows, a switch lay 1.3 cm to 25 cm outside).
+SWITCHING = {
+    "mirror": (
+        "parallel_rw3.50_sl6.82_sw2.50_th+0_y1.50",
+        "reverse_rw7.00_sl4.82_sw3.07_th+0_y5.20",
+        "reverse_rw6.00_sl4.82_sw2.07_th-20_y4.90",
+        "angle_rw4.50_sl4.82_sw1.92_th+10_y1.80",
+        "angle_rw4.00_sl4.82_sw3.07_th-10_y2.40",
+    ),
+    "mirror-guided": (
+        "parallel_rw4.50_sl5.82_sw2.50_th+30_y1.30",
+        "angle_rw4.50_sl4.82_sw1.92_th+10_y1.80",
+        "parallel_rw3.50_sl6.82_sw2.50_th+0_y1.50",
+        "reverse_rw6.00_sl4.82_sw2.02_th-80_y4.00",
+        "angle_rw4.00_sl4.82_sw3.07_th-10_y2.40",
+    ),
+}
+CONFIGS = {"mirror": MirrorPlannerConfig, "mirror-guided": guided_config}
 
 
-@pytest.mark.parametrize("case_id", SWITCHING)
-def test_every_executed_switch_in_the_natural_order_lies_in_its_plans_band(case_id):
+@pytest.mark.parametrize(("planner", "case_id"), [(p, c) for p, cases in SWITCHING.items() for c in cases])
+def test_every_executed_switch_in_the_natural_order_lies_in_its_plans_band(planner, case_id):
     """Parallel: reverse in, then forward; reverse and angle: forward, then reverse in. The
-    switch lies in Theorem 1's band (parallel) or beyond Eq. (5) / (6)'s bound, to 1 cm."""
-    policy = _Recording()
+    switch lies in Theorem 1's band (parallel) or beyond Eq. (5) / (6)'s bound, to 1 cm,
+    measured where the car stood at the plan's switch step, against the goal it mirrored."""
+    policy = _Recording(CONFIGS[planner]())
     info, _ = run_episode(gym.make("MirrorPark-v0"), policy, case_id)
     assert info["is_success"]
     g = policy.geometry
@@ -107,7 +120,7 @@ def test_every_executed_switch_in_the_natural_order_lies_in_its_plans_band(case_
         if not at:
             continue  # replanned before this plan's switch
         pose, v = at[0]
-        goal = np.array(plan.stats.detail["goal"])
+        goal = np.array(plan.goal)
         after = -plan.candidate.direction
         into_slot = parallel and after > 0 and np.allclose(goal[:2], target[:2], atol=2e-3)
         margin = 1.0 if parallel else policy.config.mirror_margin
@@ -122,8 +135,8 @@ def test_the_switch_step_is_chosen_by_optimal_cost():
     """A plan with a switch is solved at the guide's timing and at other seed speeds (other
     switch steps); the plan used is the one of lowest optimal cost."""
     compared = []
-    for case_id in (SWITCHING[1], SWITCHING[3]):
-        policy = _Recording()
+    for case_id in (SWITCHING["mirror-guided"][1], SWITCHING["mirror-guided"][3]):
+        policy = _Recording(guided_config())
         run_episode(gym.make("MirrorPark-v0"), policy, case_id)
         compared += [p for p in policy.plans if len(p.stats.detail["candidates"]) > 1]
     assert len(compared) >= 2

@@ -1,4 +1,4 @@
-"""The cost to go (``planners/mirror/value.py``) and the planner that chooses by it (``mirror-value``)."""
+"""The cost to go (``planners/mirror/value.py``) and the planner that chooses by it (``mirror``, the default)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from mirrorpark_env import Scenario
 from planners.base import run_episode
 from planners.common.clearance import gaps
 from planners.common.path import arc
-from planners.mirror.config import MirrorPlannerConfig, mirror_value_config
+from planners.mirror.config import MirrorPlannerConfig
 from planners.mirror.policy import MirrorPolicy
 from planners.mirror.value import CostToGo, ValueConfig
 
@@ -68,7 +68,7 @@ def test_policy_path_starts_in_the_gear_asked_and_changes_gear_as_allowed(revers
 
 
 def test_lookahead_reads_v_through_an_exact_move_where_the_cell_says_too_little():
-    # A pose 4.5 cm from a reverse slot's neighbour, where a mirror-value plan ended: its cell
+    # A pose 4.5 cm from a reverse slot's neighbour, where a value-mode plan ended: its cell
     # reads 7.0 m reversing on, but every reverse move from the pose itself collides (the
     # lattice of 5 deg cells without the entries, as it was measured).
     g = Scenario.from_case_id("reverse_rw7.00_sl4.82_sw2.22_th+10_y3.10").build()
@@ -154,7 +154,7 @@ def test_a_bad_lattice_setting_is_refused_by_name():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("warm_start", [True, False], ids=["mirror-value", "mirror-value-cold"])
+@pytest.mark.parametrize("warm_start", [True, False], ids=["mirror", "mirror-cold"])
 @pytest.mark.parametrize(
     "case_id",
     [
@@ -164,8 +164,8 @@ def test_a_bad_lattice_setting_is_refused_by_name():
         "angle_rw3.50_sl4.82_sw2.47_th+0_y2.60",
     ],
 )
-def test_mirror_value_parks_and_executes_the_cheapest_candidate_of_each_call(case_id, warm_start, monkeypatch):
-    """Also ``mirror-value-cold``: V the terminal cost, but neither V's way on nor the guide
+def test_mirror_parks_and_executes_the_cheapest_candidate_of_each_call(case_id, warm_start, monkeypatch):
+    """Also ``mirror-cold``: V the terminal cost, but neither V's way on nor the guide
     seeds a candidate (either one asked fails the test); the classic shapes seed them."""
     if not warm_start:
         from planners.mirror.planner import MirrorPlanner
@@ -177,7 +177,7 @@ def test_mirror_value_parks_and_executes_the_cheapest_candidate_of_each_call(cas
         monkeypatch.setattr(CostToGo, "policy_path", asked)
         monkeypatch.setattr(MirrorPlanner, "guide_search", asked)
     env = gym.make("MirrorPark-v0").unwrapped
-    policy = MirrorPolicy(mirror_value_config(time_limit_s=600.0, value_warm_start=warm_start))
+    policy = MirrorPolicy(MirrorPlannerConfig(time_limit_s=600.0, value_warm_start=warm_start))
     info, _ = run_episode(env, policy, case_id)
     assert info["is_success"] and not info["collision"], info["failed_criterion"]
     calls = [s for s in policy.stats if s.status == "ok"]
@@ -203,7 +203,7 @@ def _rolls_back(plan, tau: float) -> bool:
 
 
 @pytest.mark.slow
-def test_mirror_value_plans_end_settled_so_no_stop_rolls_back_across_zero():
+def test_mirror_plans_end_settled_so_no_stop_rolls_back_across_zero():
     # Without end_settled this episode parks with 3 switches: a plan stops while still braking
     # (a = +0.57 m/s^2 after reversing) and the lag rolls the car forward at up to 0.01 m/s.
     case = "reverse_rw7.00_sl4.82_sw2.92_th+10_y3.50"
@@ -213,7 +213,13 @@ def test_mirror_value_plans_end_settled_so_no_stop_rolls_back_across_zero():
         # the value mode's first settings, under which it was measured (finish radius 3 m, 5 deg
         # cells, scouting on 10 nodes: on 5 the settled run parks with 3 switches, none a roll-back)
         cfg = MirrorPlannerConfig(
-            guide=False, value=True, end_settled=settled, time_limit_s=600.0, value_scout_node_limit=10
+            end_settled=settled,
+            time_limit_s=600.0,
+            value_scout_node_limit=10,
+            value_finish_radius=3.0,
+            value_lattice=ValueConfig(),
+            settle_position=0.06,
+            settle_heading=0.02,
         )
         policy = MirrorPolicy(cfg)
         info, _ = run_episode(env, policy, case)

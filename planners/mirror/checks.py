@@ -160,9 +160,9 @@ class Checks:
                 cost, pos_err, th_err = self.true_cost(real, goal, theta_t)
                 sw = cand.switch if cand.switch is not None and cand.switch < cut else None
                 S = tuple(real[sw, :2]) if sw else None
-                return Plan(
-                    np.array(cmds), real, Candidate(cand.direction, sw), S, line, real, cost, (pos_err, th_err), True
-                )
+                g = (float(goal[0]), float(goal[1]), float(theta_t))
+                plan_cand = Candidate(cand.direction, sw)
+                return Plan(np.array(cmds), real, plan_cand, S, line, real, cost, (pos_err, th_err), True, goal=g)
         return None
 
 

@@ -12,7 +12,15 @@ from .value import ValueConfig
 
 
 class MirrorPlannerConfig(StrictModel):
-    """Weights, limits and solver settings of the mirrored-target planner."""
+    """Weights, limits and solver settings of the mirrored-target planner.
+
+    The defaults are the registry's ``mirror``: no guide; each call's candidates over first
+    gear and switch are aimed down the cost to go (and, within ``value_finish_radius``, at
+    the target itself) and compared by their optimised cost (``value_plan.py``). Its SCP
+    stops early only within 1 cm and 0.3 deg of a goal (a tight slot's ISO window is a few
+    centimetres wide); its cost to go has 3 deg heading cells and prices a direction switch
+    at 5 m of driving (measured against 3 and 8 m, docs/mirror_planner.md). The ablation's
+    variants are the functions below the class."""
 
     horizon: int = Field(60, ge=10, le=400)  # N (Table II)
     dt: float = Field(0.1, gt=0, le=1)
@@ -24,8 +32,8 @@ class MirrorPlannerConfig(StrictModel):
     w_trust_heading: float = Field(2.0, ge=0)  # ... and per rad^2 of heading
     converge_position: float = Field(0.02, gt=0)  # [m] SCP stops when the rollout moves less
     converge_heading: float = Field(0.01, gt=0)  # [rad]
-    settle_position: float = Field(0.06, ge=0)  # [m] ... or when a clear rollout ends this close to its goal
-    settle_heading: float = Field(0.02, ge=0)  # [rad] (0: never)
+    settle_position: float = Field(0.01, ge=0)  # [m] ... or when a clear rollout ends this close to its goal
+    settle_heading: float = Field(0.005, ge=0)  # [rad] (0: never)
     w_position: float = Field(0.2, ge=0)  # running cost per m^2 toward the mirrored target
     w_heading: float = Field(0.2, ge=0)  # per rad^2
     w_terminal_position: float = Field(400.0, ge=0)
@@ -46,7 +54,7 @@ class MirrorPlannerConfig(StrictModel):
     seed_swings: tuple[float, ...] = (-0.8, -0.4, 0.4, 0.8)  # [rad] heading excursions tried as seeds
     refine_candidates: int = Field(2, ge=1)  # candidates refined by SCP after the seed search
     time_limit_s: float = Field(5.0, gt=0)  # branch and bound's wall-clock safety net per MIQP (recorded)
-    guide: bool = True  # seed each plan from a geometric guide (guide.py); SCP only
+    guide: bool = False  # seed each plan from a geometric guide (guide.py); SCP only, not in value mode
     guide_iterations: int = Field(2, ge=1, le=1000)  # SCP rounds on a guided candidate
     seed_speed: float = Field(2.0, gt=0, le=3)  # [m/s] cruise speed of the guided seed rollout
     # [m/s] more seed speeds for a plan with a switch: other switch steps, the cheapest plan used
@@ -58,44 +66,62 @@ class MirrorPlannerConfig(StrictModel):
     fallback_calls: int = Field(0, ge=0, le=10)
     fallback_iterations: int = Field(4, ge=1, le=1000)
     fallback_node_limit: int = Field(10, ge=1, le=100_000)
-    # The value mode (``mirror-value``, value_plan.py): candidates over first gear and switch,
+    # The value mode (``mirror``, value_plan.py): candidates over first gear and switch,
     # each aimed down a cost to go (value.py) and compared by driven cost plus V at the end.
-    value: bool = False
+    # False: the guided planner or the multi-start (``guide``).
+    value: bool = True
     # Every plan ends settled: stopped, its lagged acceleration not pointing back (in the planned
     # frame, direction x a_N >= 0). Without it a plan may stop while still braking, and the lag
     # rolls the car back across zero: a direction switch of a centimetre that the env counts.
-    end_settled: bool = False
-    value_lattice: ValueConfig = ValueConfig()
+    end_settled: bool = True
+    value_lattice: ValueConfig = ValueConfig(headings=120, switch_cost=5.0)
     value_candidates: int = Field(3, ge=1, le=20)  # switch candidates refined where V is blind
     value_updates: int = Field(2, ge=1, le=10)  # solves of the leading candidate, its goal moved down V each time
     value_iterations: int = Field(3, ge=1, le=100)  # SCP rounds per solve
     value_scout_node_limit: int = Field(5, ge=1, le=100_000)  # branch-and-bound nodes per MIQP while scouting
     value_retry_nodes: int = Field(100, ge=0, le=1_000_000)  # nodes in all for re-solving on the full budget
     value_reach_speed: float = Field(1.2, gt=0, le=3)  # [m/s] a goal lies at most this far down V per second left
-    value_finish_radius: float = Field(3.0, ge=0)  # [m] within this of the target, also plan toward it
+    value_finish_radius: float = Field(8.0, ge=0)  # [m] within this of the target, also plan toward it
     # False: no path warm-starts a candidate (neither V's cheapest way on nor the guide); the
-    # classic shapes seed them, as in mirror-cold, and V stays the terminal cost (the ablation).
+    # classic shapes seed them, as in the multi-start, and V stays the terminal cost (``mirror-cold``).
     value_warm_start: bool = True
 
 
-def mirror_value_config(**changes) -> MirrorPlannerConfig:
-    """The settings of ``mirror-value`` (the registry's), with ``changes``.
+def cold_config(**changes) -> MirrorPlannerConfig:
+    """``mirror-cold``: ``mirror`` without any path as a warm start (neither the cost to go's
+    cheapest way on nor the guide); the classic shapes seed the candidates, V stays the
+    terminal cost. The ablation that shows what the warm start adds."""
+    return MirrorPlannerConfig(**{"value_warm_start": False, **changes})
 
-    No guide: each call's candidates are aimed down the cost to go, and within
-    ``value_finish_radius`` (8 m) at the target itself, and compared by their optimised
-    cost. Its SCP stops early only within 1 cm and 0.3 deg of a goal (a tight slot's ISO
-    window is a few centimetres wide); its cost to go has 3 deg heading cells and prices a
-    direction switch at 5 m of driving (measured against 3 and 8 m, docs/mirror_planner.md)."""
+
+def guided_config(**changes) -> MirrorPlannerConfig:
+    """``mirror-guided``: each plan along the geometric guide (Reeds-Shepp paths through
+    switch poses), tracked as the seed and polished by SCP toward the guide's goal. The
+    guide chooses the manoeuvre, its switch and its goal; the QP where on the mirror line
+    the car switches. The default planner until 2026-12-02, kept for the ablation."""
     base = dict(
-        guide=False,
-        value=True,
-        end_settled=True,
-        value_finish_radius=8.0,
-        settle_position=0.01,
-        settle_heading=0.005,
-        value_lattice=ValueConfig(headings=120, switch_cost=5.0),
+        guide=True,
+        value=False,
+        end_settled=False,
+        settle_position=0.06,
+        settle_heading=0.02,
+        value_finish_radius=3.0,
+        value_lattice=ValueConfig(),
     )
     return MirrorPlannerConfig(**{**base, **changes})
+
+
+def multistart_config(**changes) -> MirrorPlannerConfig:
+    """``mirror-multistart``: neither guide nor cost to go; candidates over both gears at
+    two switch steps and without a switch, seeded by the classic shapes, refined by SCP
+    and compared by their optimal cost toward the mirrored target."""
+    return guided_config(**{"guide": False, **changes})
+
+
+def paper_config(**changes) -> MirrorPlannerConfig:
+    """``mirror-paper``: the multi-start with the paper's fixed-angle linearisation
+    (Eqs. 22-32) in place of SCP's Jacobians about each rollout."""
+    return multistart_config(**{"linearisation": "paper", **changes})
 
 
 class MirrorPolicyConfig(StrictModel):

@@ -102,8 +102,8 @@ class MirrorPlanner:
     def plan(self, state: VehicleState, candidates: list[Candidate] | None = None) -> Plan | None:
         """Best collision-free plan from ``state``, or None.
 
-        Value mode (``cfg.value``, ``mirror-value``): candidates over first gear and switch,
-        aimed and compared by a cost to go (``value_plan.py``). Guided (the default): one
+        Value mode (``cfg.value``, the default ``mirror``): candidates over first gear and
+        switch, aimed and compared by a cost to go (``value_plan.py``). Guided: one
         candidate, from the guide; where the guide finds no path from a standing car, the
         unguided multi-start within the fallback budget, on at most ``fallback_calls``
         calls in a row. Otherwise the candidates given, or both gears at two switch steps
@@ -441,4 +441,7 @@ class MirrorPlanner:
         cost, pos_err, th_err = self.checks.true_cost(real, goal, theta_t)
         S = tuple(real[cand.switch, :2]) if cand.switch is not None else None
         planned = to_planned(real_half, cand, self.cfg.model_substeps)
-        return Plan(real_commands(u_planned, cand), real, cand, S, line, planned, cost, (pos_err, th_err), True)
+        goal = tuple(float(v) for v in goal[:2]) + (float(theta_t),)
+        return Plan(
+            real_commands(u_planned, cand), real, cand, S, line, planned, cost, (pos_err, th_err), True, goal=goal
+        )

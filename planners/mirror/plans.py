@@ -32,3 +32,4 @@ class Plan:
     terminal_error: tuple[float, float]  # [m], [rad] predicted real error at step N
     collision_free: bool
     stats: PlanStats | None = field(default=None)
+    goal: tuple[float, float, float] | None = None  # the real pose it was planned toward (mirrored through S)

@@ -1,4 +1,4 @@
-"""Plans chosen by a cost to go: the optimisation compares manoeuvres (``mirror-value``).
+"""Plans chosen by a cost to go: the optimisation compares manoeuvres (``mirror``, the default).
 
 One call solves several candidates (first gear, with or without a switch), each by the same
 SCP with Algorithm I inside toward its own mirrored goal, and executes the one whose
