@@ -64,6 +64,29 @@ def test_a_dagger_round_labels_the_states_the_learner_visits(require_module):
 
 
 @pytest.mark.rl
+def test_a_shielded_dagger_round_brakes_a_reckless_learner_and_labels_what_follows(require_module):
+    """With ``dagger.shield`` the learner's actions pass the rl-shield filter: a learner that
+    would hit the far kerb is braked short of it, the episode goes on, and the expert labels
+    the states after the near-miss, which a collision would have cut off."""
+    require_module("stable_baselines3")
+    from planners.rl.dagger import ShadowExpert, rollouts
+
+    class Reckless:  # full throttle, full left lock (tests/test_shield.py: it meets the far kerb)
+        def predict(self, obs, deterministic=True):
+            return np.array([1.0, 1.0], dtype=np.float32), None
+
+    sc = Scenario.from_case_id("reverse_rw5.00_sl4.82_sw2.47_th+0_y2.00")
+    run = lambda shield: rollouts(  # noqa: E731
+        Reckless(), ShadowExpert("guide-only", 20), [sc], beta=0.0, max_steps=300, seed=0, shield=shield
+    )
+    _, bare_labels, bare = run(False)
+    _, labels, shielded = run(True)
+    assert bare["collided"] == 1 and bare["shielded_steps"] == 0
+    assert shielded["collided"] == 0 and shielded["shielded_steps"] > 0
+    assert len(labels) > len(bare_labels)  # states past the point where the bare learner crashed
+
+
+@pytest.mark.rl
 def test_with_beta_one_a_dagger_round_is_the_experts_own_episode(require_module):
     require_module("stable_baselines3")
     import gymnasium as gym

@@ -73,6 +73,11 @@ class DaggerConfig(StrictModel):
     # [m/s] the expert's cruising speed on its path (None: its tracker's own, 1 m/s); a slower
     # expert leaves a learner's error in speed or steering more room before an obstacle.
     expert_cruise_speed: float | None = Field(None, gt=0, le=3)
+    # The learner's actions in the rollouts pass the safety filter of ``rl-shield:`` (shield.py):
+    # where one would lead into an obstacle the car brakes instead, and the episode goes on from
+    # there, so the expert labels the states a shielded learner meets (near-misses and what
+    # follows them) rather than ending at a collision. For models meant to run as rl-shield.
+    shield: bool = False
     workers: int = Field(0, ge=0)  # rollout processes (0: all cores)
 
 

@@ -95,21 +95,26 @@ def rollouts(
     max_steps: int,
     seed: int,
     env_config: dict[str, Any] | None = None,
+    shield: bool = False,
 ) -> tuple[dict[str, np.ndarray], np.ndarray, dict[str, int]]:
     """States visited on ``cases`` under the mixed policy, with the expert's labels
-    (``env_config``: the MirrorPark-v0 config the learner observes through)."""
+    (``env_config``: the MirrorPark-v0 config the learner observes through; ``shield``: the
+    learner's actions pass the safety filter, ``shield.py``)."""
     import gymnasium as gym
 
     import mirrorpark_env  # noqa: F401
+
+    from .shield import Shield
 
     env = gym.make("MirrorPark-v0", config=env_config or {})
     rng = np.random.default_rng(seed)
     obs_out: dict[str, list[np.ndarray]] = {}
     labels: list[np.ndarray] = []
-    counts = {"episodes": 0, "parked": 0, "collided": 0, "expert_gave_up": 0}
+    counts = {"episodes": 0, "parked": 0, "collided": 0, "expert_gave_up": 0, "shielded_steps": 0}
     for sc in cases:
         obs, info = env.reset(options={"scenario": sc})
         expert.reset(info["geometry"])
+        guard = Shield(info["geometry"], env.unwrapped.cfg.dt) if shield else None
         counts["episodes"] += 1
         for _ in range(max_steps):
             label = expert.label(obs, info)
@@ -123,6 +128,9 @@ def rollouts(
                 action = label
             else:
                 action, _ = model.predict(obs, deterministic=True)
+                if guard is not None:
+                    action, clear = guard.filter(info["vehicle_state"], action)
+                    counts["shielded_steps"] += int(not clear)
             obs, _, term, trunc, info = env.step(action)
             if term or trunc:
                 break
@@ -145,7 +153,7 @@ def _worker(job: tuple) -> tuple:
     expert = ShadowExpert(
         dc.expert, dc.expert_max_plans, dc.expert_replans_moving, dc.expert_markov, dc.expert_cruise_speed
     )
-    obs, labels, counts = rollouts(model, expert, cases, beta, dc.max_steps, seed, env_cfg)
+    obs, labels, counts = rollouts(model, expert, cases, beta, dc.max_steps, seed, env_cfg, dc.shield)
     return obs, labels, counts, expert.calls
 
 

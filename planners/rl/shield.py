@@ -26,37 +26,21 @@ from ..common.tracker import hold_accel
 BRAKE_STEPS = 40  # control steps of braking tried at most (4 s at 0.1 s)
 
 
-class Shielded(Policy):
-    """``inner``'s action where one step of it and then the brake stay clear; else the brake."""
+class Shield:
+    """The filter itself, for one scenario: an action, or the brake where it is not clear."""
 
-    def __init__(self, inner: Policy, dt: float = 0.1):
-        self.inner = inner  # its stats and give-up are the filter's (no state of its own)
-        self.name = f"rl-shield:{inner.name.removeprefix('rl:')}"
-        self.dt = dt
-        self.overrides = 0
-
-    def reset(self, geometry: ScenarioGeometry) -> None:
-        self.inner.reset(geometry)
+    def __init__(self, geometry: ScenarioGeometry, dt: float = 0.1):
         self.g = geometry
         self.p = geometry.vehicle
-        self.model = TruthModel(self.p, self.dt, 0.01)
-        self.overrides = 0
+        self.model = TruthModel(self.p, dt, 0.01)
 
-    def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
-        t0 = time.perf_counter()
-        action = self.inner.act(obs, info)
-        s: VehicleState = info["vehicle_state"]
-        clear = self._clear(s, *from_action(self.p, action))
-        if not clear:
-            self.overrides += 1
-            action = to_action(self.p, hold_accel(self.p, s.v, s.a), s.delta)
-        if self.inner.stats:  # the decision's time includes the filter's; its status says if it overrode
-            last = self.inner.stats[-1]
-            status = last.status if clear else "shielded"
-            self.inner.stats[-1] = PlanStats(time.perf_counter() - t0, status, detail={"learner_status": last.status})
-        return action
+    def filter(self, s: VehicleState, action: np.ndarray) -> tuple[np.ndarray, bool]:
+        """(the action to execute, whether ``action`` was clear)."""
+        if self.clear(s, *from_action(self.p, action)):
+            return action, True
+        return to_action(self.p, hold_accel(self.p, s.v, s.a), s.delta), False
 
-    def _clear(self, s: VehicleState, a_cmd: float, d_cmd: float) -> bool:
+    def clear(self, s: VehicleState, a_cmd: float, d_cmd: float) -> bool:
         p = self.p
         state = (s.x, s.y, s.theta, s.v, s.a, s.delta)
         here = float(gaps(self.g.checker, np.array([state[:3]]), all_axes=True)[0])
@@ -71,6 +55,32 @@ class Shielded(Policy):
             poses += [r[:3] for r in rows]
             x = rows[-1][:6]
         return bool((gaps(self.g.checker, np.array(poses), all_axes=True) >= need - 1e-12).all())
+
+
+class Shielded(Policy):
+    """``inner``'s action where one step of it and then the brake stay clear; else the brake."""
+
+    def __init__(self, inner: Policy, dt: float = 0.1):
+        self.inner = inner  # its stats and give-up are the filter's (no state of its own)
+        self.name = f"rl-shield:{inner.name.removeprefix('rl:')}"
+        self.dt = dt
+        self.overrides = 0
+
+    def reset(self, geometry: ScenarioGeometry) -> None:
+        self.inner.reset(geometry)
+        self.shield = Shield(geometry, self.dt)
+        self.overrides = 0
+
+    def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
+        t0 = time.perf_counter()
+        action, clear = self.shield.filter(info["vehicle_state"], self.inner.act(obs, info))
+        if not clear:
+            self.overrides += 1
+        if self.inner.stats:  # the decision's time includes the filter's; its status says if it overrode
+            last = self.inner.stats[-1]
+            status = last.status if clear else "shielded"
+            self.inner.stats[-1] = PlanStats(time.perf_counter() - t0, status, detail={"learner_status": last.status})
+        return action
 
     @property
     def stats(self) -> list[PlanStats]:
