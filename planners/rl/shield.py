@@ -41,6 +41,7 @@ class Shield:
         return to_action(self.p, hold_accel(self.p, s.v, s.a), s.delta), False
 
     def clear(self, s: VehicleState, a_cmd: float, d_cmd: float) -> bool:
+        """Whether one step of these commands, then the brake to a stand, keeps the gap."""
         p = self.p
         state = (s.x, s.y, s.theta, s.v, s.a, s.delta)
         here = float(gaps(self.g.checker, np.array([state[:3]]), all_axes=True)[0])
