@@ -355,3 +355,26 @@ def test_a_slower_expert_keeps_to_its_cruising_speed_and_still_parks(require_mod
         assert info["is_success"]
         top[cruise] = max(abs(t["vehicle_state"].v) for t in trace)
     assert top[0.5] < 0.6 and top[None] > 0.9  # the tracker overshoots its reference by a few per cent
+
+
+@pytest.mark.rl
+@pytest.mark.parametrize(("loss", "want"), [("mse", 0.45), ("l1", 0.9)])
+def test_an_l1_fit_takes_the_majoritys_gear_where_mse_stands_between(loss, want, require_module):
+    """Six labels of +0.9 and two of -0.9 at one state: the mean is 0.45 (a creep), the
+    median +0.9 (the majority's gear)."""
+    require_module("stable_baselines3")
+    from mirrorpark_env.grid import Grid
+    from planners.rl.bc import fit_actor
+    from planners.rl.config import load_rl_config
+    from planners.rl.train import make_model, make_train_env
+
+    cfg = load_rl_config("configs/rl_dagger.yaml", {"bc": {"epochs": 300, "batch_size": 8, "loss": loss}})
+    model = make_model(cfg, make_train_env(cfg, Grid.from_config()))
+    model.observation_space.seed(0)
+    state = {k: v[None] for k, v in model.observation_space.sample().items()}
+    obs = {k: np.repeat(v, 8, axis=0) for k, v in state.items()}
+    actions = np.array([[0.9, 0.2]] * 6 + [[-0.9, 0.2]] * 2, np.float32)
+    fit_actor(model, obs, actions, cfg, progress=False)
+    accel, steer = model.predict(state, deterministic=True)[0][0]
+    assert accel == pytest.approx(want, abs=0.05)
+    assert steer == pytest.approx(0.2, abs=0.05)

@@ -51,7 +51,7 @@ def load_demos(demos: str | Path, successes_only: bool = True) -> tuple[dict[str
 def fit_actor(
     model, obs: dict[str, np.ndarray], actions: np.ndarray, cfg: RLConfig, progress: bool = True
 ) -> list[float]:
-    """Regress the model's deterministic action on ``actions``; the mean loss of each epoch.
+    """Regress the model's deterministic action on ``actions`` (``cfg.bc.loss``); the mean loss of each epoch.
 
     Raises ``ValueError`` where ``obs`` lacks a part of what the model observes (a dataset
     recorded without the lidar the config asks for)."""
@@ -71,6 +71,7 @@ def fit_actor(
     opt = torch.optim.Adam(actor.parameters(), lr=cfg.bc.learning_rate)
     target_all = np.clip(actions, -0.999, 0.999)  # a tanh-squashed actor cannot reach +-1
     n = len(actions)
+    loss_fn = {"mse": torch.nn.functional.mse_loss, "l1": torch.nn.functional.l1_loss}[cfg.bc.loss]
     history = []
     for _ in tqdm(range(cfg.bc.epochs), desc="behaviour cloning", unit="epoch", disable=not progress):
         order = rng.permutation(n)
@@ -79,7 +80,7 @@ def fit_actor(
             idx = order[b0 : b0 + cfg.bc.batch_size]
             batch, _ = model.policy.obs_to_tensor({k: v[idx] for k, v in obs.items()})
             target = torch.as_tensor(target_all[idx], device=model.device)
-            loss = torch.nn.functional.mse_loss(actor(batch, deterministic=True), target)
+            loss = loss_fn(actor(batch, deterministic=True), target)
             opt.zero_grad()
             loss.backward()
             opt.step()

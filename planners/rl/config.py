@@ -41,6 +41,9 @@ class BCConfig(StrictModel):
     batch_size: int = Field(256, ge=1)
     learning_rate: float = Field(1e-3, gt=0, le=1)
     successes_only: bool = True  # clone only the episodes that ended parked
+    # mse fits the mean action, l1 the median: where the labels of nearby states split between
+    # two gears, the mean stands still between them and the median takes one (docs/rl.md)
+    loss: Literal["mse", "l1"] = "mse"
 
 
 class FinetuneConfig(StrictModel):
