@@ -80,10 +80,10 @@ class _Recording(MirrorPolicy):
 
 # Cases in which plans hold their switch (in many episodes plans switch only at their ends),
 # for the default planner (``mirror``) and for the guided one (``mirror-guided``: in its last
-# three cases, before the band rows, a switch lay 1.3 cm to 25 cm outside). The guided
-# planner's third case was parallel_rw3.50_sl6.82_sw2.50_th+0_y1.50 until 2026-12-02: in that
-# day's fresh install (numpy 2.4.6, scipy 1.17.1, numba 0.68.1), the same code that passed
-# before replans there before its plan's switch, so no switch was left to check.
+# two cases, and in parallel_rw3.50_sl6.82_sw2.50_th+0_y1.50, before the band rows, a switch
+# lay 1.3 cm to 25 cm outside). That parallel case was the guided planner's third until
+# 2026-12-02: in that day's fresh install (numpy 2.4.6, scipy 1.17.1, numba 0.68.1), the same
+# code that passed before replans there before its plan's switch, leaving none to check.
 SWITCHING = {
     "mirror": (
         "parallel_rw3.50_sl6.82_sw2.50_th+0_y1.50",

@@ -42,7 +42,8 @@ class BCConfig(StrictModel):
     learning_rate: float = Field(1e-3, gt=0, le=1)
     successes_only: bool = True  # clone only the episodes that ended parked
     # mse fits the mean action, l1 the median: where the labels of nearby states split between
-    # two gears, the mean stands still between them and the median takes one (docs/rl.md)
+    # two gears, the mean creeps between them and the median takes the majority's, which on
+    # DAgger's labels of a standing car is the hold (docs/rl.md: l1 parks less there)
     loss: Literal["mse", "l1"] = "mse"
 
 
