@@ -19,7 +19,7 @@ from .figures import (
     fig_plan_time,
     fig_success_by_type,
 )
-from .metrics import TYPES, headline, odd_cells, odd_size, summary
+from .metrics import TYPES, far_out, headline, odd_cells, odd_size, summary
 
 SPARE = 0.01  # [m] room to spare that the report's "to spare" columns ask of a slot
 
@@ -172,15 +172,15 @@ def _success_tables(df, planners) -> list[str]:
         index=df.index,
     )
     roomy = feasible & (slack >= SPARE - 1e-9)
-    far_out = df["y0"] >= 1.6 - 1e-9
+    far_all = far_out(df)
     for p in planners:
         for t in TYPES:
             m = (df["planner"] == p) & (df["parking_type"] == t)
             if not m.any():
                 continue
             f = m & feasible
-            far = f & far_out
-            r, r_far = m & roomy, m & roomy & far_out
+            far = f & far_all
+            r, r_far = m & roomy, m & roomy & far_all
             cells = [ok[x].mean() if x.any() else None for x in (m, f, far, r, r_far)]
             lines.append(
                 f"| {p} | {t} | {int(m.sum())} | {_pct(cells[0])} | {int(f.sum())} | {_pct(cells[1])}"

@@ -13,6 +13,9 @@ from pathlib import Path
 
 import pandas as pd
 
+from evaluation.metrics import far_out
+from evaluation.store import read_results
+
 GRID = Path(__file__).resolve().parents[1] / "results" / "grid"
 
 
@@ -36,11 +39,11 @@ def main() -> None:
     common = sorted(set.intersection(*(set(h) for h in have)))
     if not common:
         raise SystemExit(f"no chunk that all of {args.planners} have in {GRID}")
-    tables = [pd.concat(pd.read_parquet(h[k]) for k in common).set_index("case_id") for h in have]
+    tables = [read_results([h[k] for k in common]).set_index("case_id") for h in have]
     ids = tables[0].index
     tables = [t.loc[ids] for t in tables]
     first = tables[0]
-    sel = (first.y0 >= 1.6) & first.feasible
+    sel = far_out(first) & first.feasible
     any_ok = pd.concat([t.success for t in tables], axis=1).any(axis=1)
     n_sel = int(sel.sum())
     print(f"chunks {common[0]}-{common[-1]} ({len(common)}), {len(ids)} cases; y0 >= 1.6 m and an ISO pose: {n_sel}")
