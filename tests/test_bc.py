@@ -48,7 +48,7 @@ def test_a_dagger_round_labels_the_states_the_learner_visits(require_module):
             return np.array([0.3, 0.0], dtype=np.float32), None
 
     sc = Scenario.from_case_id(CASES[0])
-    obs, labels, counts = rollouts(Learner(), ShadowExpert("guide-only", 20), [sc], beta=0.0, max_steps=12, seed=0)
+    obs, labels, _, counts = rollouts(Learner(), ShadowExpert("guide-only", 20), [sc], beta=0.0, max_steps=12, seed=0)
     assert len(labels) == 12 and all(len(v) == 12 for v in obs.values()) and counts["episodes"] == 1
     # Replay the learner: the same states, and an expert riding along gives the same labels.
     env = gym.make("MirrorPark-v0")
@@ -79,8 +79,8 @@ def test_a_shielded_dagger_round_brakes_a_reckless_learner_and_labels_what_follo
     run = lambda shield: rollouts(  # noqa: E731
         Reckless(), ShadowExpert("guide-only", 20), [sc], beta=0.0, max_steps=300, seed=0, shield=shield
     )
-    _, bare_labels, bare = run(False)
-    _, labels, shielded = run(True)
+    _, bare_labels, _, bare = run(False)
+    _, labels, _, shielded = run(True)
     assert bare["collided"] == 1 and bare["shielded_steps"] == 0
     assert shielded["collided"] == 0 and shielded["shielded_steps"] > 0
     assert len(labels) > len(bare_labels)  # states past the point where the bare learner crashed
@@ -96,7 +96,7 @@ def test_with_beta_one_a_dagger_round_is_the_experts_own_episode(require_module)
     from planners.rl.dagger import ShadowExpert, rollouts
 
     sc = Scenario.from_case_id(CASES[0])
-    obs, labels, counts = rollouts(None, ShadowExpert("guide-only", 6), [sc], beta=1.0, max_steps=1800, seed=0)
+    obs, labels, _, counts = rollouts(None, ShadowExpert("guide-only", 6), [sc], beta=1.0, max_steps=1800, seed=0)
     record: list = []
     info, steps = run_episode(gym.make("MirrorPark-v0"), make_policy("guide-only"), sc, record=record)
     assert info["is_success"] and counts["parked"] == 1 and len(labels) == steps
@@ -308,18 +308,22 @@ def test_a_markov_expert_must_price_the_gear_it_starts_in(require_module):
 
 
 @pytest.mark.rl
-def test_an_interrupted_dagger_run_resumes_to_the_weights_of_one_without_a_break(tmp_path, require_module):
+@pytest.mark.parametrize("gear", [False, True])
+def test_an_interrupted_dagger_run_resumes_to_the_weights_of_one_without_a_break(gear, tmp_path, require_module):
     """Two rounds in one go, and one round then ``--resume --dagger-rounds 2``: the same
-    model, bit for bit, and the same round log; a folder with no finished round is refused."""
+    model (and gear head), bit for bit, and the same round log; a folder with no finished
+    round is refused."""
     require_module("stable_baselines3")
     import torch
 
     from evaluation.cli import main as cli
     from planners.rl.config import load_rl_config
     from planners.rl.dagger import dagger
+    from planners.rl.gear import GearedModel
     from planners.rl.policy import RLPolicy
 
-    over = {"lidar": {"rays": 8}, "dagger": {"cases_per_round": 2, "workers": 1, "max_steps": 40}, "bc": {"epochs": 2}}
+    dc = {"cases_per_round": 2, "workers": 1, "max_steps": 40, "gear": gear, "expert_markov": gear}
+    over = {"lidar": {"rays": 8}, "dagger": dc, "bc": {"epochs": 2}}
     cfg = load_rl_config("configs/rl_dagger.yaml", over)
     whole = dagger(cfg, None, tmp_path / "whole", rounds=2, progress=False)
     first = dagger(cfg, None, tmp_path / "cut", rounds=1, progress=False)
@@ -328,9 +332,13 @@ def test_an_interrupted_dagger_run_resumes_to_the_weights_of_one_without_a_break
     resumed = json.loads((tmp_path / "cut" / "train.json").read_text())
     drop = lambda log: [{k: v for k, v in r.items() if k != "wall_s"} for r in log]  # noqa: E731
     assert drop(resumed["rounds"]) == drop(whole["rounds"]) and resumed["samples"] == whole["samples"]
-    a = RLPolicy(tmp_path / "whole" / "model.zip").model.actor.state_dict()
-    b = RLPolicy(tmp_path / "cut" / "model.zip").model.actor.state_dict()
-    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    pa, pb = RLPolicy(tmp_path / "whole" / "model.zip").model, RLPolicy(tmp_path / "cut" / "model.zip").model
+    assert isinstance(pa, GearedModel) == isinstance(pb, GearedModel) == gear
+    nets = [(pa.actor, pb.actor)] + ([(pa.head, pb.head)] if gear else [])
+    for na, nb in nets:
+        a, b = na.state_dict(), nb.state_dict()
+        assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    assert ("gear_head" in resumed) == gear and (not gear or resumed["gear_head"] == whole["gear_head"])
     assert sorted(p.name for p in (tmp_path / "cut" / "rounds").glob("data-*")) == ["data-r2.npz"]
     (tmp_path / "empty").mkdir()
     (tmp_path / "empty" / "config.json").write_text(cfg.model_dump_json())
@@ -378,3 +386,74 @@ def test_an_l1_fit_takes_the_majoritys_gear_where_mse_stands_between(loss, want,
     accel, steer = model.predict(state, deterministic=True)[0][0]
     assert accel == pytest.approx(want, abs=0.05)
     assert steer == pytest.approx(0.2, abs=0.05)
+
+
+@pytest.mark.rl
+def test_a_markov_experts_labels_at_a_stand_carry_the_gear_it_goes_in(require_module):
+    """Where the car stands the Markov expert names the gear its path starts in: where it
+    goes at once, the gear of its acceleration; where it holds, re-steering first, the gear
+    it will go in. Moving, it names none."""
+    require_module("stable_baselines3")
+    from planners.rl.dagger import ShadowExpert, rollouts
+    from planners.rl.gear import standing
+
+    sc = Scenario.from_case_id(CASES[0])
+    obs, labels, gears, counts = rollouts(
+        None, ShadowExpert("guide-only", 20, markov=True), [sc], beta=1.0, max_steps=1800, seed=0
+    )
+    assert counts["parked"] == 1
+    stand = standing(obs)
+    assert not gears[~stand].any() and set(np.unique(gears[stand])) <= {-1, 0, 1}
+    going = stand & (np.abs(labels[:, 0]) > 0.05) & (gears != 0)
+    assert going.sum() >= 2 and (np.sign(labels[going, 0]) == gears[going]).all()
+    holding = stand & (np.abs(labels[:, 0]) <= 0.05) & (gears != 0)
+    assert holding.sum() > 0  # re-steering while it stands, its gear already named
+    assert {-1, 1} <= set(gears.tolist())  # this case parks with a switch
+
+
+@pytest.mark.rl
+def test_a_gear_head_chooses_the_gear_and_a_standing_learner_resteers_then_goes(tmp_path, require_module):
+    """Two standing states labelled forward and back: the fitted head tells them apart. A
+    geared model standing with its wheels away from its own steering command holds; with
+    them there it goes in the head's gear; moving, it acts as the model does. Saved and
+    loaded, it answers the same."""
+    require_module("stable_baselines3")
+    from mirrorpark_env.grid import Grid
+    from planners.rl.config import load_rl_config
+    from planners.rl.gear import GearedModel, fit_head, load_head, make_head
+    from planners.rl.train import make_model, make_train_env
+
+    cfg = load_rl_config("configs/rl_dagger.yaml", {"bc": {"epochs": 200, "batch_size": 8}})
+    model = make_model(cfg, make_train_env(cfg, Grid.from_config()))
+    model.observation_space.seed(1)
+    states = [{k: v[None].copy() for k, v in model.observation_space.sample().items()} for _ in range(2)]
+    for s in states:
+        s["observation"][0, 4] = 0.0  # standing
+    obs = {k: np.concatenate([s[k] for s in states] * 4) for k in states[0]}
+    gears = np.array([1, -1] * 4, np.int8)
+    head = make_head(model.actor.features_dim)
+    fit_head(model, head, obs, gears, cfg, progress=False)
+    geared = GearedModel(model, head, (0.4, -0.5))
+    assert geared.gear_logits(states[0])[0] > 0 > geared.gear_logits(states[1])[0]
+    for s, go in zip(states, (0.4, -0.5)):
+        steer = model.predict(s, deterministic=True)[0][0, 1]
+        s["observation"][0, 6] = steer  # the wheels where the actor wants them
+        assert geared.predict(s)[0][0] == pytest.approx([go, steer])
+        s["observation"][0, 6] = steer - 0.5 if steer > 0 else steer + 0.5
+        assert geared.predict(s)[0][0, 0] == 0.0  # re-steering first
+        moving = {k: v.copy() for k, v in s.items()}
+        moving["observation"][0, 4] = 0.3
+        np.testing.assert_array_equal(geared.predict(moving)[0], model.predict(moving, deterministic=True)[0])
+    geared.save(tmp_path / "model.zip")
+    loaded = load_head(model, tmp_path / "model.zip")
+    assert loaded.go == (0.4, -0.5)
+    batch = {k: np.concatenate([s[k] for s in states]) for k in states[0]}
+    np.testing.assert_array_equal(loaded.predict(batch)[0], geared.predict(batch)[0])
+    assert load_head(model, tmp_path / "none.zip") is None
+
+
+def test_a_gear_head_needs_the_markov_expert():
+    from planners.rl.config import load_rl_config
+
+    with pytest.raises(ValueError, match="dagger.gear"):
+        load_rl_config("configs/rl_dagger.yaml", {"dagger": {"gear": True, "expert_markov": False}})

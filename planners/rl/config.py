@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from mirrorpark_env.config import (
     PARKING_TYPES,
@@ -82,7 +82,16 @@ class DaggerConfig(StrictModel):
     # there, so the expert labels the states a shielded learner meets (near-misses and what
     # follows them) rather than ending at a collision. For models meant to run as rl-shield.
     shield: bool = False
+    # The expert's labels at a stand also carry the gear its path starts in, a gear head learns
+    # it, and a standing learner re-steers, then goes in that gear (gear.py). Needs expert_markov.
+    gear: bool = False
     workers: int = Field(0, ge=0)  # rollout processes (0: all cores)
+
+    @model_validator(mode="after")
+    def _gear_needs_markov(self) -> DaggerConfig:
+        if self.gear and not self.expert_markov:
+            raise ValueError("dagger.gear: needs dagger.expert_markov: true (only a Markov expert labels a gear)")
+        return self
 
 
 class RLConfig(StrictModel):

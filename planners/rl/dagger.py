@@ -44,6 +44,7 @@ from mirrorpark_env.scenario import ParkingType, Scenario
 
 from .bc import action_error, fit_actor, load_demos, save_trained
 from .config import RLConfig, env_config
+from .gear import GearedModel, fit_head, go_accels, load_head, make_head
 
 
 class ShadowExpert:
@@ -74,13 +75,24 @@ class ShadowExpert:
         if cruise_speed is not None:
             inner.tracker_config = inner.tracker_config.model_copy(update={"cruise_speed": cruise_speed})
         self.calls = 0
+        self.gear = 0
 
     def reset(self, geometry) -> None:
         self.policy.reset(geometry)
 
     def label(self, obs: dict, info: dict) -> np.ndarray:
+        """The expert's action here; ``gear`` then holds the gear its path starts in where the
+        car stands and a Markov expert has a path it may start on (+1, -1), else 0."""
         self.calls += 1
-        return np.asarray(self.policy.act(obs, info), np.float32)
+        inner = getattr(self.policy, "inner", self.policy)
+        vetoed = inner.safety_stops
+        action = np.asarray(self.policy.act(obs, info), np.float32)
+        s = info["vehicle_state"]
+        tr = inner.tracker
+        self.gear = 0
+        if inner.markov and tr is not None and abs(s.v) <= 0.02 and inner.safety_stops == vetoed:
+            self.gear = tr.first_gear
+        return action
 
     @property
     def gave_up(self) -> bool:
@@ -96,10 +108,11 @@ def rollouts(
     seed: int,
     env_config: dict[str, Any] | None = None,
     shield: bool = False,
-) -> tuple[dict[str, np.ndarray], np.ndarray, dict[str, int]]:
-    """States visited on ``cases`` under the mixed policy, with the expert's labels
-    (``env_config``: the MirrorPark-v0 config the learner observes through; ``shield``: the
-    learner's actions pass the safety filter, ``shield.py``)."""
+) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, dict[str, int]]:
+    """States visited on ``cases`` under the mixed policy, with the expert's labels and the
+    gears it starts in where the car stands (``ShadowExpert.label``). ``env_config``: the
+    MirrorPark-v0 config the learner observes through; ``shield``: the learner's actions
+    pass the safety filter (``shield.py``)."""
     import gymnasium as gym
 
     import mirrorpark_env  # noqa: F401
@@ -110,6 +123,7 @@ def rollouts(
     rng = np.random.default_rng(seed)
     obs_out: dict[str, list[np.ndarray]] = {}
     labels: list[np.ndarray] = []
+    gears: list[int] = []
     counts = {"episodes": 0, "parked": 0, "collided": 0, "expert_gave_up": 0, "shielded_steps": 0}
     for sc in cases:
         obs, info = env.reset(options={"scenario": sc})
@@ -124,6 +138,7 @@ def rollouts(
             for k, v in obs.items():
                 obs_out.setdefault(k, []).append(np.asarray(v, np.float32))
             labels.append(label)
+            gears.append(expert.gear)
             if beta >= 1.0 or (beta > 0.0 and rng.random() < beta):
                 action = label
             else:
@@ -136,7 +151,8 @@ def rollouts(
                 break
         counts["parked"] += int(bool(info["is_success"]))
         counts["collided"] += int(bool(info["collision"]))
-    return {k: np.stack(v) for k, v in obs_out.items()}, np.asarray(labels, np.float32).reshape(-1, 2), counts
+    acts = np.asarray(labels, np.float32).reshape(-1, 2)
+    return {k: np.stack(v) for k, v in obs_out.items()}, acts, np.asarray(gears, np.int8), counts
 
 
 def _worker(job: tuple) -> tuple:
@@ -153,17 +169,20 @@ def _worker(job: tuple) -> tuple:
     expert = ShadowExpert(
         dc.expert, dc.expert_max_plans, dc.expert_replans_moving, dc.expert_markov, dc.expert_cruise_speed
     )
-    obs, labels, counts = rollouts(model, expert, cases, beta, dc.max_steps, seed, env_cfg, dc.shield)
-    return obs, labels, counts, expert.calls
+    obs, labels, gears, counts = rollouts(model, expert, cases, beta, dc.max_steps, seed, env_cfg, dc.shield)
+    return obs, labels, gears, counts, expert.calls
 
 
-def save_round(out: Path, model, obs: dict, actions: np.ndarray, log: list, expert_calls: int, episodes: int) -> None:
-    """The finished round's model and all data so far, then the log that points to them
-    (written last and atomically: a run killed at any moment resumes from a whole round)."""
+def save_round(
+    out: Path, model, obs: dict, actions: np.ndarray, gears: np.ndarray, log: list, expert_calls: int, episodes: int
+) -> None:
+    """The finished round's model (with its gear head, if any) and all data so far, then the
+    log that points to them (written last and atomically: a run killed at any moment resumes
+    from a whole round)."""
     r = len(log)
     model.save(out / "rounds" / f"model-r{r}.zip")
     tmp = out / "rounds" / f"data-r{r}.tmp.npz"
-    np.savez(tmp, actions=actions, **{f"obs/{k}": v for k, v in obs.items()})
+    np.savez(tmp, actions=actions, gears=gears, **{f"obs/{k}": v for k, v in obs.items()})
     os.replace(tmp, out / "rounds" / f"data-r{r}.npz")
     _write_json(out / "rounds" / "progress.json", {"log": log, "expert_calls": expert_calls, "episodes": episodes})
     for old in (out / "rounds").glob("data-r*.npz"):  # the earlier rounds' data is part of this one's
@@ -171,9 +190,10 @@ def save_round(out: Path, model, obs: dict, actions: np.ndarray, log: list, expe
             old.unlink()
 
 
-def _load_data(out: Path, r: int) -> tuple[dict[str, np.ndarray], np.ndarray]:
+def _load_data(out: Path, r: int) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
     with np.load(out / "rounds" / f"data-r{r}.npz") as d:
-        return {k[4:]: d[k] for k in d.files if k.startswith("obs/")}, d["actions"]
+        gears = d["gears"] if "gears" in d.files else np.zeros(len(d["actions"]), np.int8)
+        return {k[4:]: d[k] for k in d.files if k.startswith("obs/")}, d["actions"], gears
 
 
 def load_progress(out: Path) -> dict | None:
@@ -222,9 +242,11 @@ def dagger(
     torch.set_num_threads(cfg.torch_threads)
     grid = Grid.from_config()
     model = make_model(cfg, make_train_env(cfg, grid))
+    learner = GearedModel(model, make_head(model.actor.features_dim), (1.0, -1.0)) if cfg.dagger.gear else model
     t0 = time.perf_counter()
     obs: dict[str, np.ndarray] = {}
     actions = np.zeros((0, 2), np.float32)
+    gears = np.zeros(0, np.int8)
     episodes, log, expert_calls = 0, [], 0
     if resume:
         state = load_progress(out)
@@ -232,21 +254,25 @@ def dagger(
             raise ValueError(f"--resume: {out} holds no finished DAgger round to go on from")
         log, expert_calls, episodes = state["log"], state["expert_calls"], state["episodes"]
         _write_json(out / "dagger.json", {**json.loads((out / "dagger.json").read_text()), "rounds": rounds})
-        model.set_parameters(str(out / "rounds" / f"model-r{len(log)}.zip"), exact_match=True, device=model.device)
-        obs, actions = _load_data(out, len(log))
+        last = out / "rounds" / f"model-r{len(log)}.zip"
+        model.set_parameters(str(last), exact_match=True, device=model.device)
+        if cfg.dagger.gear:
+            learner = load_head(model, last) or learner
+        obs, actions, gears = _load_data(out, len(log))
     else:
         (out / "config.json").write_text(cfg.model_dump_json(indent=2))
         _write_json(out / "dagger.json", {"demos": str(demos) if demos is not None else None, "rounds": rounds})
         if demos is not None:
             obs, actions, episodes = load_demos(demos, cfg.bc.successes_only)
+            gears = np.zeros(len(actions), np.int8)  # demonstrations carry no gear labels
             fit_actor(model, obs, actions, cfg, progress)
-        model.save(out / "rounds" / "model-r0.zip")
+        learner.save(out / "rounds" / "model-r0.zip")
     # How rl:PATH loads a round's model: its algorithm and what it observes.
     meta = {"algo": cfg.algo, "config": {"lidar": cfg.lidar.model_dump()}}
     (out / "rounds" / "train.json").write_text(json.dumps(meta))
     try:
-        obs, actions, log, expert_calls = _rounds(
-            cfg, model, grid, out, rounds, (obs, actions, log, expert_calls, episodes), t0, progress
+        obs, actions, gears, log, expert_calls = _rounds(
+            cfg, learner, grid, out, rounds, (obs, actions, gears, log, expert_calls, episodes), t0, progress
         )
     except KeyboardInterrupt:
         done = len((load_progress(out) or {"log": []})["log"])
@@ -254,8 +280,11 @@ def dagger(
             f"{done} DAgger round(s) finished in {out}; go on with: mirrorpark train-rl --resume {out}"
         ) from None
     wall = time.perf_counter() - t0
+    extra = {}
+    if cfg.dagger.gear:
+        extra["gear_head"] = {"go": list(learner.go), "standing_labelled": int(np.sum(gears != 0))}
     return save_trained(
-        model,
+        learner,
         cfg,
         out,
         "dagger",
@@ -268,15 +297,18 @@ def dagger(
         expert_calls=expert_calls,
         epochs_per_fit=cfg.bc.epochs,
         action_error_on_all=round(action_error(model, obs, actions), 6),
+        **extra,
     )
 
 
-def _rounds(cfg: RLConfig, model, grid, out: Path, rounds: int, state: tuple, t0: float, progress: bool) -> tuple:
-    """Rounds ``len(log) + 1`` .. ``rounds`` from ``state`` = (obs, actions, log, expert
-    calls, episodes), each saved as it finishes; the state after the last."""
+def _rounds(cfg: RLConfig, learner, grid, out: Path, rounds: int, state: tuple, t0: float, progress: bool) -> tuple:
+    """Rounds ``len(log) + 1`` .. ``rounds`` from ``state`` = (obs, actions, gears, log,
+    expert calls, episodes), each saved as it finishes; the state after the last.
+    ``learner``: the model, or a ``GearedModel`` around it whose head is fitted too."""
     from tqdm import tqdm
 
-    obs, actions, log, expert_calls, episodes = state
+    obs, actions, gears, log, expert_calls, episodes = state
+    model = getattr(learner, "model", learner)
     dc = cfg.dagger
     workers = dc.workers or os.cpu_count() or 1
     env_cfg = env_config(cfg)
@@ -300,12 +332,17 @@ def _rounds(cfg: RLConfig, model, grid, out: Path, rounds: int, state: tuple, t0
             parts = [p for p in done if len(p[1])]
             new_obs = {k: np.concatenate([p[0][k] for p in parts]) for k in parts[0][0]}
             new_actions = np.concatenate([p[1] for p in parts])
-            counts = {k: sum(p[2][k] for p in done) for k in done[0][2]}
-            expert_calls += sum(p[3] for p in done)
+            new_gears = np.concatenate([p[2] for p in parts])
+            counts = {k: sum(p[3][k] for p in done) for k in done[0][3]}
+            expert_calls += sum(p[4] for p in done)
             err = round(action_error(model, new_obs, new_actions), 6) if len(actions) else None
             obs = {k: np.concatenate([obs[k], new_obs[k]]) if obs else new_obs[k] for k in new_obs}
             actions = np.concatenate([actions, new_actions])
+            gears = np.concatenate([gears, new_gears])
             fit_actor(model, obs, actions, cfg, progress)
+            if learner is not model:
+                fit_head(model, learner.head, obs, gears, cfg, progress)
+                learner.go = go_accels(obs, actions, gears)
             log.append(
                 {
                     "round": r,
@@ -316,7 +353,7 @@ def _rounds(cfg: RLConfig, model, grid, out: Path, rounds: int, state: tuple, t0
                     "wall_s": round(time.perf_counter() - t0, 1),  # of this run (a resumed run: of its part)
                 }
             )
-            save_round(out, model, obs, actions, log, expert_calls, episodes)
+            save_round(out, learner, obs, actions, gears, log, expert_calls, episodes)
             if progress:
                 print(log[-1], flush=True)
-    return obs, actions, log, expert_calls
+    return obs, actions, gears, log, expert_calls

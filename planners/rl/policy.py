@@ -34,7 +34,8 @@ def trained_lidar(model_path: str | Path) -> dict[str, Any] | None:
 
 @lru_cache(maxsize=4)
 def load_model(path: str):
-    """The model at ``path`` (SAC or TQC, as its train.json says); cached per process."""
+    """The model at ``path`` (SAC or TQC, as its train.json says), with its gear head where
+    one is saved beside it (``gear.py``); cached per process."""
     p = Path(path)
     if not p.is_file():
         raise ValueError(f"rl model: no such file {str(p)!r} (pass the model.zip that train-rl wrote)")
@@ -53,9 +54,12 @@ def load_model(path: str):
         raise ValueError("rl model: needs the rl extra: pip install torch==2.13.0 && pip install -e '.[rl]'") from None
     try:
         # A model trained with HER needs an env to rebuild its buffer; only its spaces are used.
-        return Algo.load(p, env=gym.make("MirrorPark-v0", config=env_config), device="cpu")
+        model = Algo.load(p, env=gym.make("MirrorPark-v0", config=env_config), device="cpu")
     except Exception as err:  # noqa: BLE001  (a bad file: one clear line)
         raise ValueError(f"rl model: cannot load {str(p)!r} as {algo.upper()}: {err}") from None
+    from .gear import load_head
+
+    return load_head(model, p) or model  # a gear head beside it decides the standing gear (gear.py)
 
 
 class RLPolicy(Policy):
