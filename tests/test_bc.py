@@ -438,7 +438,7 @@ def test_a_gear_head_chooses_the_gear_and_a_standing_learner_resteers_then_goes(
     for s, go in zip(states, (0.4, -0.5)):
         steer = model.predict(s, deterministic=True)[0][0, 1]
         s["observation"][0, 6] = steer  # the wheels where the actor wants them
-        assert geared.predict(s)[0][0] == pytest.approx([go, steer])
+        assert geared.predict(s)[0][0] == pytest.approx([go, steer], abs=1e-3)  # its steering sees the wheels
         s["observation"][0, 6] = steer - 0.5 if steer > 0 else steer + 0.5
         assert geared.predict(s)[0][0, 0] == 0.0  # re-steering first
         moving = {k: v.copy() for k, v in s.items()}
