@@ -44,7 +44,7 @@ from mirrorpark_env.scenario import ParkingType, Scenario
 
 from .bc import action_error, fit_actor, load_demos, save_trained
 from .config import RLConfig, env_config
-from .gear import GearedModel, fit_head, go_accels, load_head, make_head
+from .gear import STAND_SPEED, GearedModel, fit_head, go_accels, load_head, make_head
 
 
 class ShadowExpert:
@@ -90,7 +90,7 @@ class ShadowExpert:
         s = info["vehicle_state"]
         tr = inner.tracker
         self.gear = 0
-        if inner.markov and tr is not None and abs(s.v) <= 0.02 and inner.safety_stops == vetoed:
+        if inner.markov and tr is not None and abs(s.v) <= STAND_SPEED and inner.safety_stops == vetoed:
             self.gear = tr.first_gear
         return action
 

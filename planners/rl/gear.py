@@ -21,9 +21,10 @@ from typing import Any
 import numpy as np
 
 from mirrorpark_env.vehicle import VehicleParams
+from planners.common.tracker import TrackerConfig
 
 STAND_SPEED = 0.02  # [m/s] the tracker's "standing" (planners/common/tracker.py)
-STEER_TOLERANCE = 0.03  # [rad] the tracker's standing re-steer is done within this
+STEER_TOLERANCE = TrackerConfig().steer_tolerance  # [rad] the tracker's standing re-steer is done within this
 
 
 def gear_path(model_path: str | Path) -> Path:
