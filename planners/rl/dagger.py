@@ -74,6 +74,7 @@ class ShadowExpert:
         inner.markov = markov
         if cruise_speed is not None:
             inner.tracker_config = inner.tracker_config.model_copy(update={"cruise_speed": cruise_speed})
+        self.inner = inner  # the tracking policy itself, whose plan and stops label the gear
         self.calls = 0
         self.gear = 0
 
@@ -84,7 +85,7 @@ class ShadowExpert:
         """The expert's action here; ``gear`` then holds the gear its path starts in where the
         car stands and a Markov expert has a path it may start on (+1, -1), else 0."""
         self.calls += 1
-        inner = getattr(self.policy, "inner", self.policy)
+        inner = self.inner
         vetoed = inner.safety_stops
         action = np.asarray(self.policy.act(obs, info), np.float32)
         s = info["vehicle_state"]
