@@ -144,3 +144,34 @@ def test_resume_continues_from_the_checkpoints_step_count(tmp_path, require_modu
         from planners.rl.train import resume_config
 
         resume_config(tmp_path / "nothing")
+
+
+@pytest.mark.parametrize("algo", ["sac", "tqc"])
+def test_the_direct_actor_pass_gives_predicts_actions_bit_for_bit(require_module, algo):
+    """``rl:``'s hot path (planners/rl/inference.py) skips predict's overhead, not its
+    arithmetic: one observation or a batch, the same float32 actions; a geared model's
+    direct path answers as its path through predict does."""
+    require_module("stable_baselines3")
+    if algo == "tqc":
+        require_module("sb3_contrib")
+    from planners.rl.gear import GearedModel, make_head
+    from planners.rl.inference import deterministic_action, direct
+    from planners.rl.train import make_model, make_train_env
+
+    cfg = load_rl_config("configs/rl_dagger.yaml", {"algo": algo, "net_arch": [64, 64]})
+    model = make_model(cfg, make_train_env(cfg, Grid.from_config()))
+    assert direct(model)
+    model.observation_space.seed(3)
+    samples = [model.observation_space.sample() for _ in range(64)]
+    for i, s in enumerate(samples):
+        s["observation"][4] = 0.0 if i % 2 else s["observation"][4]  # half of them standing
+    for s in samples:
+        np.testing.assert_array_equal(deterministic_action(model, s), model.predict(s, deterministic=True)[0])
+    batch = {k: np.stack([s[k] for s in samples]) for k in samples[0]}
+    np.testing.assert_array_equal(deterministic_action(model, batch), model.predict(batch, deterministic=True)[0])
+    geared = GearedModel(model, make_head(model.actor.features_dim), (0.4, -0.5))
+    through_predict = GearedModel(model, geared.head, geared.go)
+    through_predict._direct = False  # the head's features from a second pass, as before
+    np.testing.assert_array_equal(geared.predict(batch)[0], through_predict.predict(batch)[0])
+    for s in samples[:8]:
+        np.testing.assert_array_equal(geared.predict(s)[0], through_predict.predict(s)[0])

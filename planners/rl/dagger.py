@@ -44,7 +44,7 @@ from mirrorpark_env.scenario import ParkingType, Scenario
 
 from .bc import action_error, fit_actor, load_demos, save_trained
 from .config import RLConfig, env_config
-from .gear import STAND_SPEED, GearedModel, fit_head, go_accels, load_head, make_head
+from .gear import STAND_SPEED, GearedModel, decide, fit_head, go_accels, load_head, make_head
 
 
 class ShadowExpert:
@@ -143,7 +143,7 @@ def rollouts(
             if beta >= 1.0 or (beta > 0.0 and rng.random() < beta):
                 action = label
             else:
-                action, _ = model.predict(obs, deterministic=True)
+                action = decide(model, obs)
                 if guard is not None:
                     action, clear = guard.filter(info["vehicle_state"], action)
                     counts["shielded_steps"] += int(not clear)

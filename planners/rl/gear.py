@@ -23,6 +23,8 @@ import numpy as np
 from mirrorpark_env.vehicle import VehicleParams
 from planners.common.tracker import TrackerConfig
 
+from .inference import actor_pass, deterministic_action, direct
+
 STAND_SPEED = 0.02  # [m/s] the tracker's "standing" (planners/common/tracker.py)
 STEER_TOLERANCE = TrackerConfig().steer_tolerance  # [rad] the tracker's standing re-steer is done within this
 
@@ -63,6 +65,7 @@ class GearedModel:
         self.head = head
         self.go = go  # normalised acceleration that starts the car (forward, back)
         self.params = VehicleParams.table_ii()
+        self._direct = direct(model)
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.model, name)
@@ -73,18 +76,28 @@ class GearedModel:
 
         with torch.no_grad():
             t, _ = self.model.policy.obs_to_tensor(obs)
-            f = self.model.actor.extract_features(t, self.model.actor.features_extractor)
-            return self.head(f).reshape(-1).cpu().numpy()
+            return self._logits(self.model.actor.extract_features(t, self.model.actor.features_extractor))
+
+    def _logits(self, features) -> np.ndarray:
+        import torch
+
+        with torch.inference_mode():
+            return self.head(features).reshape(-1).cpu().numpy()
 
     def predict(self, obs: dict[str, np.ndarray], state=None, episode_start=None, deterministic: bool = True):
-        action, state = self.model.predict(obs, state, episode_start, deterministic)
-        batched = np.ndim(action) == 2
-        acts = np.array(action, dtype=np.float32).reshape(-1, 2)
+        if deterministic and self._direct:  # one pass gives the action and the head's features
+            acts, features = actor_pass(self.model, obs)
+            acts = np.array(acts, dtype=np.float32)
+            batched = np.ndim(obs["observation"]) == 2
+        else:
+            action, state = self.model.predict(obs, state, episode_start, deterministic)
+            acts, features = np.array(action, dtype=np.float32).reshape(-1, 2), None
+            batched = np.ndim(action) == 2
         stand = standing(obs, self.params)
         if stand.any():
             p = self.params
             o = np.asarray(obs["observation"]).reshape(-1, 13)
-            logits = self.gear_logits(obs)
+            logits = self.gear_logits(obs) if features is None else self._logits(features)
             ready = np.abs((o[:, 6] - acts[:, 1]) * p.max_steer) < STEER_TOLERANCE
             go = np.where(logits > 0, self.go[0], self.go[1]).astype(np.float32)
             acts[:, 0] = np.where(stand, np.where(ready, go, 0.0), acts[:, 0])
@@ -96,6 +109,13 @@ class GearedModel:
 
         self.model.save(path)
         torch.save({"head": self.head.state_dict(), "go": list(self.go)}, gear_path(path))
+
+
+def decide(model, obs: dict[str, np.ndarray]) -> np.ndarray:
+    """The deterministic action of a trained model, or of a ``GearedModel``, for ``obs``."""
+    if isinstance(model, GearedModel):
+        return model.predict(obs)[0]
+    return deterministic_action(model, obs)
 
 
 def load_head(model, path: str | Path) -> GearedModel | None:

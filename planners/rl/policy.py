@@ -18,6 +18,7 @@ from mirrorpark_env.lidar import Lidar
 from mirrorpark_env.scenario import ScenarioGeometry
 
 from ..base import PlanStats, Policy
+from .gear import decide
 
 
 def _train_json(model_path: Path) -> dict[str, Any]:
@@ -89,6 +90,6 @@ class RLPolicy(Policy):
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         t0 = time.perf_counter()
-        action, _ = self.model.predict(self.observation(obs, info), deterministic=True)
+        action = decide(self.model, self.observation(obs, info))
         self.stats.append(PlanStats(time.perf_counter() - t0, "ok"))
         return np.asarray(action, dtype=np.float32)
