@@ -49,6 +49,7 @@ def main() -> None:
             "failed": info["failed_criterion"],
             "steps": steps,
             "overrides": policy.overrides,
+            "gear_swaps": policy.gear_swaps,
             "standing_share_last_30s": round(float(standing.mean()), 3),
             "learner_accel_standing_mean": round(float(np.mean(accel)), 4) if accel.size else None,
         }

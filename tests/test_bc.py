@@ -444,6 +444,7 @@ def test_a_gear_head_chooses_the_gear_and_a_standing_learner_resteers_then_goes(
         moving = {k: v.copy() for k, v in s.items()}
         moving["observation"][0, 4] = 0.3
         np.testing.assert_array_equal(geared.predict(moving)[0], model.predict(moving, deterministic=True)[0])
+    assert geared.other_gear(np.array([0.4, 0.2]))[0] == -0.5 and geared.other_gear(np.array([-0.5, 0.2]))[0] == 0.4
     geared.save(tmp_path / "model.zip")
     loaded = load_head(model, tmp_path / "model.zip")
     assert loaded.go == (0.4, -0.5)

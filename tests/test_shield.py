@@ -37,3 +37,22 @@ def test_the_filter_stops_a_reckless_learner_short_of_the_kerb_and_says_so():
     assert shield.overrides > 0
     assert shield.stats[-1].status == "shielded" and shield.stats[-1].detail["learner_status"] == "ok"
     assert shield.name == "rl-shield:full-left"
+
+
+class FullLeftSecondBack(FullLeft):
+    """The reckless learner, whose second choice is the same lock in reverse."""
+
+    def second_choice(self, action: np.ndarray) -> np.ndarray:
+        return np.array([-action[0], action[1]], dtype=np.float32)
+
+
+def test_a_car_stopped_short_of_the_kerb_backs_off_in_the_learners_second_gear():
+    """Braked to a stand before the far kerb, the learner that insists on going forward
+    stays there; one with a second choice backs off in it, still without a collision."""
+    env = gym.make("MirrorPark-v0").unwrapped
+    for learner, backs in ((FullLeft(), False), (FullLeftSecondBack(), True)):
+        shield, trace = Shielded(learner), []
+        info, _ = run_episode(env, shield, CASE, max_steps=300, trace=trace)
+        assert not info["collision"]
+        went_back = min(i["vehicle_state"].v for i in trace) < -0.05
+        assert went_back == backs == (shield.gear_swaps > 0)

@@ -103,6 +103,13 @@ class GearedModel:
             acts[:, 0] = np.where(stand, np.where(ready, go, 0.0), acts[:, 0])
         return (acts if batched else acts[0]), state
 
+    def other_gear(self, action: np.ndarray) -> np.ndarray:
+        """``action`` (a standing start) in the other gear: the other starting acceleration,
+        the same steering."""
+        out = np.array(action, dtype=np.float32)
+        out[0] = self.go[1] if action[0] > 0 else self.go[0]
+        return out
+
     def save(self, path: str | Path) -> None:
         """The model at ``path`` and its head beside it."""
         import torch

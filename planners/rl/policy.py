@@ -18,7 +18,7 @@ from mirrorpark_env.lidar import Lidar
 from mirrorpark_env.scenario import ScenarioGeometry
 
 from ..base import PlanStats, Policy
-from .gear import decide
+from .gear import GearedModel, decide
 
 
 def _train_json(model_path: Path) -> dict[str, Any]:
@@ -87,6 +87,14 @@ class RLPolicy(Policy):
             return obs
         s = info["vehicle_state"]
         return {**obs, "lidar": self._lidar.read_body(s.x, s.y, s.theta, self._centre)}
+
+    def second_choice(self, action: np.ndarray) -> np.ndarray:
+        """The learner's action in the other gear, for a filter that blocks a standing start
+        (``shield.py``): a geared model's other starting acceleration, else the same command
+        mirrored; the steering as it is."""
+        if isinstance(self.model, GearedModel):
+            return self.model.other_gear(action)
+        return np.array([-action[0], action[1]], dtype=np.float32)
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         t0 = time.perf_counter()

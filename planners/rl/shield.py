@@ -4,8 +4,12 @@ Each step the learner's action is tried on the truth model: one step of it, then
 brake (``tracker.hold_accel``, steering held) until the car stands still (its speed and
 acceleration die away; a car that only nearly stands creeps on). If a footprint on the
 way comes closer to an obstacle than ``MIN_GAP`` (or, where the car is already closer,
-closer than it is now), the filter brakes instead. It changes what the learner's
-row measures, so it is never folded into ``rl:PATH``: the learner alone stays that row.
+closer than it is now), the filter brakes instead; but where the car stands and the
+learner offers a second choice in the other gear (``second_choice``: a geared model's
+other gear, else the same command mirrored), that is taken if it is clear. Braking alone
+left a learner that insists on a blocked gear standing until the time ran out (docs/rl.md).
+It changes what the learner's row measures, so it is never folded into ``rl:PATH``: the
+learner alone stays that row.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from ..base import PlanStats, Policy
 from ..common.clearance import gaps
 from ..common.safety import MIN_GAP  # the tracking policies' stopping check keeps the same gap
 from ..common.tracker import hold_accel
+from .gear import STAND_SPEED
 
 BRAKE_STEPS = 40  # control steps of braking tried at most (4 s at 0.1 s)
 
@@ -35,10 +40,18 @@ class Shield:
         self.model = TruthModel(self.p, dt, 0.01)
 
     def filter(self, s: VehicleState, action: np.ndarray) -> tuple[np.ndarray, bool]:
-        """(the action to execute, whether ``action`` was clear)."""
+        """(the action to execute, whether ``action`` was clear): it, or the brake."""
+        executed, how = self.decide(s, action)
+        return executed, how == "clear"
+
+    def decide(self, s: VehicleState, action: np.ndarray, other: np.ndarray | None = None) -> tuple[np.ndarray, str]:
+        """(the action to execute, ``"clear"``, ``"other"`` or ``"brake"``): ``action`` where
+        it is clear, else ``other`` (the learner's second choice) where that is, else the brake."""
         if self.clear(s, *from_action(self.p, action)):
-            return action, True
-        return to_action(self.p, hold_accel(self.p, s.v, s.a), s.delta), False
+            return action, "clear"
+        if other is not None and self.clear(s, *from_action(self.p, other)):
+            return np.asarray(other, dtype=np.float32), "other"
+        return to_action(self.p, hold_accel(self.p, s.v, s.a), s.delta), "brake"
 
     def clear(self, s: VehicleState, a_cmd: float, d_cmd: float) -> bool:
         """Whether one step of these commands, then the brake to a stand, keeps the gap."""
@@ -59,24 +72,32 @@ class Shield:
 
 
 class Shielded(Policy):
-    """``inner``'s action where one step of it and then the brake stay clear; else the brake."""
+    """``inner``'s action where one step of it and then the brake stay clear; else, standing,
+    its second choice in the other gear where that is clear; else the brake."""
 
     def __init__(self, inner: Policy, dt: float = 0.1):
         self.inner = inner  # its stats and give-up are the filter's (no state of its own)
         self.name = f"rl-shield:{inner.name.removeprefix('rl:')}"
         self.dt = dt
         self.overrides = 0
+        self.gear_swaps = 0  # overrides that took the learner's other gear
 
     def reset(self, geometry: ScenarioGeometry) -> None:
         self.inner.reset(geometry)
         self.shield = Shield(geometry, self.dt)
         self.overrides = 0
+        self.gear_swaps = 0
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         t0 = time.perf_counter()
-        action, clear = self.shield.filter(info["vehicle_state"], self.inner.act(obs, info))
-        if not clear:
-            self.overrides += 1
+        s = info["vehicle_state"]
+        wanted = self.inner.act(obs, info)
+        second = getattr(self.inner, "second_choice", None)
+        other = second(wanted) if second is not None and abs(s.v) <= STAND_SPEED and wanted[0] != 0 else None
+        action, how = self.shield.decide(s, wanted, other)
+        clear = how == "clear"
+        self.overrides += int(not clear)
+        self.gear_swaps += int(how == "other")
         if self.inner.stats:  # the decision's time includes the filter's; its status says if it overrode
             last = self.inner.stats[-1]
             status = last.status if clear else "shielded"
