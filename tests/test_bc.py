@@ -76,14 +76,18 @@ def test_a_shielded_dagger_round_brakes_a_reckless_learner_and_labels_what_follo
             return np.array([1.0, 1.0], dtype=np.float32), None
 
     sc = Scenario.from_case_id("reverse_rw5.00_sl4.82_sw2.47_th+0_y2.00")
-    run = lambda shield: rollouts(  # noqa: E731
-        Reckless(), ShadowExpert("guide-only", 20), [sc], beta=0.0, max_steps=300, seed=0, shield=shield
+    run = lambda shield, second=False: rollouts(  # noqa: E731
+        Reckless(), ShadowExpert("guide-only", 20), [sc], 0.0, 300, 0, shield=shield, second_gear=second
     )
     _, bare_labels, _, bare = run(False)
-    _, labels, _, shielded = run(True)
+    obs, labels, _, shielded = run(True)
     assert bare["collided"] == 1 and bare["shielded_steps"] == 0
-    assert shielded["collided"] == 0 and shielded["shielded_steps"] > 0
+    assert shielded["collided"] == 0 and shielded["shielded_steps"] > 0 and shielded["gear_swaps"] == 0
     assert len(labels) > len(bare_labels)  # states past the point where the bare learner crashed
+    # With dagger.shield_second_gear the filter backs the stopped car off in reverse instead.
+    obs2, _, _, swapped = run(True, True)
+    assert swapped["collided"] == 0 and swapped["gear_swaps"] > 0
+    assert obs2["observation"][:, 4].min() < 0 <= obs["observation"][:, 4].min()  # it went backwards
 
 
 @pytest.mark.rl
@@ -458,3 +462,10 @@ def test_a_gear_head_needs_the_markov_expert():
 
     with pytest.raises(ValueError, match="dagger.gear"):
         load_rl_config("configs/rl_dagger.yaml", {"dagger": {"gear": True, "expert_markov": False}})
+
+
+def test_the_filters_second_gear_in_dagger_needs_the_filter():
+    from planners.rl.config import load_rl_config
+
+    with pytest.raises(ValueError, match="dagger.shield_second_gear"):
+        load_rl_config("configs/rl_dagger.yaml", {"dagger": {"shield_second_gear": True, "shield": False}})

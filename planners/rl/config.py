@@ -82,6 +82,10 @@ class DaggerConfig(StrictModel):
     # there, so the expert labels the states a shielded learner meets (near-misses and what
     # follows them) rather than ending at a collision. For models meant to run as rl-shield.
     shield: bool = False
+    # With shield: where a standing learner's start is blocked, the filter takes its second
+    # choice in the other gear where that is clear, as rl-shield does since 2026-12-02; false
+    # keeps the brake alone, as the runs before then did. Needs shield.
+    shield_second_gear: bool = False
     # The expert's labels at a stand also carry the gear its path starts in, a gear head learns
     # it, and a standing learner re-steers, then goes in that gear (gear.py). Needs expert_markov.
     gear: bool = False
@@ -91,6 +95,12 @@ class DaggerConfig(StrictModel):
     def _gear_needs_markov(self) -> DaggerConfig:
         if self.gear and not self.expert_markov:
             raise ValueError("dagger.gear: needs dagger.expert_markov: true (only a Markov expert labels a gear)")
+        return self
+
+    @model_validator(mode="after")
+    def _second_gear_needs_shield(self) -> DaggerConfig:
+        if self.shield_second_gear and not self.shield:
+            raise ValueError("dagger.shield_second_gear: needs dagger.shield: true (it is a choice the filter makes)")
         return self
 
 

@@ -35,6 +35,7 @@ import json
 import multiprocessing as mp
 import os
 import time
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -44,7 +45,7 @@ from mirrorpark_env.scenario import ParkingType, Scenario
 
 from .bc import action_error, fit_actor, load_demos, save_trained
 from .config import RLConfig, env_config
-from .gear import STAND_SPEED, GearedModel, decide, fit_head, go_accels, load_head, make_head
+from .gear import STAND_SPEED, GearedModel, decide, fit_head, go_accels, load_head, make_head, second_choice
 
 
 class ShadowExpert:
@@ -109,11 +110,13 @@ def rollouts(
     seed: int,
     env_config: dict[str, Any] | None = None,
     shield: bool = False,
+    second_gear: bool = False,
 ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, dict[str, int]]:
     """States visited on ``cases`` under the mixed policy, with the expert's labels and the
     gears it starts in where the car stands (``ShadowExpert.label``). ``env_config``: the
     MirrorPark-v0 config the learner observes through; ``shield``: the learner's actions
-    pass the safety filter (``shield.py``)."""
+    pass the safety filter (``shield.py``), with ``second_gear`` trying the learner's other
+    gear where it blocks a standing start."""
     import gymnasium as gym
 
     import mirrorpark_env  # noqa: F401
@@ -125,7 +128,8 @@ def rollouts(
     obs_out: dict[str, list[np.ndarray]] = {}
     labels: list[np.ndarray] = []
     gears: list[int] = []
-    counts = {"episodes": 0, "parked": 0, "collided": 0, "expert_gave_up": 0, "shielded_steps": 0}
+    counts = {"episodes": 0, "parked": 0, "collided": 0, "expert_gave_up": 0, "shielded_steps": 0, "gear_swaps": 0}
+    second = partial(second_choice, model)
     for sc in cases:
         obs, info = env.reset(options={"scenario": sc})
         expert.reset(info["geometry"])
@@ -145,8 +149,9 @@ def rollouts(
             else:
                 action = decide(model, obs)
                 if guard is not None:
-                    action, clear = guard.filter(info["vehicle_state"], action)
-                    counts["shielded_steps"] += int(not clear)
+                    action, how = guard.decide(info["vehicle_state"], action, second if second_gear else None)
+                    counts["shielded_steps"] += int(how != "clear")
+                    counts["gear_swaps"] += int(how == "other")
             obs, _, term, trunc, info = env.step(action)
             if term or trunc:
                 break
@@ -170,7 +175,9 @@ def _worker(job: tuple) -> tuple:
     expert = ShadowExpert(
         dc.expert, dc.expert_max_plans, dc.expert_replans_moving, dc.expert_markov, dc.expert_cruise_speed
     )
-    obs, labels, gears, counts = rollouts(model, expert, cases, beta, dc.max_steps, seed, env_cfg, dc.shield)
+    obs, labels, gears, counts = rollouts(
+        model, expert, cases, beta, dc.max_steps, seed, env_cfg, dc.shield, dc.shield_second_gear
+    )
     return obs, labels, gears, counts, expert.calls
 
 

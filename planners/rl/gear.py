@@ -118,6 +118,14 @@ class GearedModel:
         torch.save({"head": self.head.state_dict(), "go": list(self.go)}, gear_path(path))
 
 
+def second_choice(model, action: np.ndarray) -> np.ndarray:
+    """A standing start ``action`` of ``model`` in the other gear, the steering kept: a geared
+    model's other starting acceleration, else the same command mirrored (``shield.py``)."""
+    if isinstance(model, GearedModel):
+        return model.other_gear(action)
+    return np.array([-action[0], action[1]], dtype=np.float32)
+
+
 def decide(model, obs: dict[str, np.ndarray]) -> np.ndarray:
     """The deterministic action of a trained model, or of a ``GearedModel``, for ``obs``."""
     if isinstance(model, GearedModel):

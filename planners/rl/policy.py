@@ -18,7 +18,7 @@ from mirrorpark_env.lidar import Lidar
 from mirrorpark_env.scenario import ScenarioGeometry
 
 from ..base import PlanStats, Policy
-from .gear import GearedModel, decide
+from .gear import decide, second_choice
 
 
 def _train_json(model_path: Path) -> dict[str, Any]:
@@ -89,12 +89,9 @@ class RLPolicy(Policy):
         return {**obs, "lidar": self._lidar.read_body(s.x, s.y, s.theta, self._centre)}
 
     def second_choice(self, action: np.ndarray) -> np.ndarray:
-        """The learner's action in the other gear, for a filter that blocks a standing start
-        (``shield.py``): a geared model's other starting acceleration, else the same command
-        mirrored; the steering as it is."""
-        if isinstance(self.model, GearedModel):
-            return self.model.other_gear(action)
-        return np.array([-action[0], action[1]], dtype=np.float32)
+        """The learner's standing start ``action`` in the other gear, for a filter that blocks
+        it (``shield.py``; ``gear.second_choice``)."""
+        return second_choice(self.model, action)
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         t0 = time.perf_counter()

@@ -15,6 +15,7 @@ learner alone stays that row.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -44,13 +45,18 @@ class Shield:
         executed, how = self.decide(s, action)
         return executed, how == "clear"
 
-    def decide(self, s: VehicleState, action: np.ndarray, other: np.ndarray | None = None) -> tuple[np.ndarray, str]:
+    def decide(
+        self, s: VehicleState, action: np.ndarray, second: Callable[[np.ndarray], np.ndarray] | None = None
+    ) -> tuple[np.ndarray, str]:
         """(the action to execute, ``"clear"``, ``"other"`` or ``"brake"``): ``action`` where
-        it is clear, else ``other`` (the learner's second choice) where that is, else the brake."""
+        it is clear; else, where the car stands and ``action`` would start it, the learner's
+        ``second(action)`` in the other gear where that is clear; else the brake."""
         if self.clear(s, *from_action(self.p, action)):
             return action, "clear"
-        if other is not None and self.clear(s, *from_action(self.p, other)):
-            return np.asarray(other, dtype=np.float32), "other"
+        if second is not None and abs(s.v) <= STAND_SPEED and action[0] != 0:
+            other = np.asarray(second(action), dtype=np.float32)
+            if self.clear(s, *from_action(self.p, other)):
+                return other, "other"
         return to_action(self.p, hold_accel(self.p, s.v, s.a), s.delta), "brake"
 
     def clear(self, s: VehicleState, a_cmd: float, d_cmd: float) -> bool:
@@ -90,11 +96,8 @@ class Shielded(Policy):
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         t0 = time.perf_counter()
-        s = info["vehicle_state"]
         wanted = self.inner.act(obs, info)
-        second = getattr(self.inner, "second_choice", None)
-        other = second(wanted) if second is not None and abs(s.v) <= STAND_SPEED and wanted[0] != 0 else None
-        action, how = self.shield.decide(s, wanted, other)
+        action, how = self.shield.decide(info["vehicle_state"], wanted, getattr(self.inner, "second_choice", None))
         clear = how == "clear"
         self.overrides += int(not clear)
         self.gear_swaps += int(how == "other")
