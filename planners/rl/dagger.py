@@ -45,7 +45,16 @@ from mirrorpark_env.scenario import ParkingType, Scenario
 
 from .bc import action_error, fit_actor, load_demos, save_trained
 from .config import RLConfig, env_config
-from .gear import STAND_SPEED, GearedModel, decide, fit_head, go_accels, load_head, make_head, second_choice
+from .gear import (
+    STAND_SPEED,
+    GearedModel,
+    fit_head,
+    go_accels,
+    learner_action,
+    load_head,
+    make_head,
+    second_choice,
+)
 
 
 class ShadowExpert:
@@ -147,7 +156,7 @@ def rollouts(
             if beta >= 1.0 or (beta > 0.0 and rng.random() < beta):
                 action = label
             else:
-                action = decide(model, obs)
+                action = learner_action(model, obs)
                 if guard is not None:
                     action, how = guard.decide(info["vehicle_state"], action, second if second_gear else None)
                     counts["shielded_steps"] += int(how != "clear")

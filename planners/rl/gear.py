@@ -126,7 +126,7 @@ def second_choice(model, action: np.ndarray) -> np.ndarray:
     return np.array([-action[0], action[1]], dtype=np.float32)
 
 
-def decide(model, obs: dict[str, np.ndarray]) -> np.ndarray:
+def learner_action(model, obs: dict[str, np.ndarray]) -> np.ndarray:
     """The deterministic action of a trained model, or of a ``GearedModel``, for ``obs``."""
     if isinstance(model, GearedModel):
         return model.predict(obs)[0]

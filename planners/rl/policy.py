@@ -18,7 +18,7 @@ from mirrorpark_env.lidar import Lidar
 from mirrorpark_env.scenario import ScenarioGeometry
 
 from ..base import PlanStats, Policy
-from .gear import decide, second_choice
+from .gear import learner_action, second_choice
 
 
 def _train_json(model_path: Path) -> dict[str, Any]:
@@ -95,6 +95,6 @@ class RLPolicy(Policy):
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         t0 = time.perf_counter()
-        action = decide(self.model, self.observation(obs, info))
+        action = learner_action(self.model, self.observation(obs, info))
         self.stats.append(PlanStats(time.perf_counter() - t0, "ok"))
         return np.asarray(action, dtype=np.float32)
