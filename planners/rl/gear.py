@@ -86,8 +86,8 @@ class GearedModel:
 
     def predict(self, obs: dict[str, np.ndarray], state=None, episode_start=None, deterministic: bool = True):
         if deterministic and self._direct:  # one pass gives the action and the head's features
-            acts, features = actor_pass(self.model, obs)
-            acts = np.array(acts, dtype=np.float32)
+            acts, features = actor_pass(self.model, obs)  # a fresh array: changed in place below
+            acts = np.asarray(acts, dtype=np.float32)
             batched = np.ndim(obs["observation"]) == 2
         else:
             action, state = self.model.predict(obs, state, episode_start, deterministic)

@@ -40,11 +40,6 @@ class Shield:
         self.p = geometry.vehicle
         self.model = TruthModel(self.p, dt, 0.01)
 
-    def filter(self, s: VehicleState, action: np.ndarray) -> tuple[np.ndarray, bool]:
-        """(the action to execute, whether ``action`` was clear): it, or the brake."""
-        executed, how = self.decide(s, action)
-        return executed, how == "clear"
-
     def decide(
         self, s: VehicleState, action: np.ndarray, second: Callable[[np.ndarray], np.ndarray] | None = None
     ) -> tuple[np.ndarray, str]:
