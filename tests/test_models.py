@@ -1,0 +1,40 @@
+"""The committed best learned policy: its recipe file is what trained it, and inside the
+safety filter it parks a fixed case of each type (docs/rl.md, "The best learned policy")."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import gymnasium as gym
+import pytest
+
+import mirrorpark_env  # noqa: F401
+from planners.base import run_episode
+from planners.rl.config import load_rl_config
+
+ROOT = Path(__file__).resolve().parents[1]
+BEST = ROOT / "models" / "dagger-gear-shield"
+
+
+def test_the_best_models_recipe_file_holds_the_config_it_was_trained_with():
+    trained = json.loads((BEST / "train.json").read_text())["config"]
+    assert load_rl_config(ROOT / "configs" / "rl_dagger_gear_shield.yaml").model_dump() == trained
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        "parallel_rw3.50_sl6.62_sw2.50_th+10_y1.30",
+        "reverse_rw7.00_sl4.82_sw2.42_th+30_y2.80",
+        "angle_rw4.00_sl4.82_sw2.47_th+10_y1.10",
+    ],
+)
+def test_the_best_model_parks_a_fixed_case_of_each_type_inside_the_filter(require_module, case):
+    require_module("stable_baselines3")
+    require_module("torch")
+    from evaluation.registry import make_policy
+
+    policy = make_policy(f"rl-shield:{BEST / 'model.zip'}")
+    info, _ = run_episode(gym.make("MirrorPark-v0").unwrapped, policy, case)
+    assert info["is_success"] and not info["collision"], (case, info["failed_criterion"])
