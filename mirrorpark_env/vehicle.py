@@ -135,6 +135,16 @@ class TruthModel:
         self._ed_end = [math.exp(-(k + 1) * h / params.tau_delta) for k in ks]
         self._dv_lag = params.tau_a * (1.0 - math.exp(-h / params.tau_a))
 
+    def lag_factors(self) -> np.ndarray:
+        """(n, 4) per sub-step: the acceleration lag's decay at its start and end, the steering
+        lag's at its middle and end (for compiled loops that repeat ``step_rows``)."""
+        return np.array([self._ea_start, self._ea_end, self._ed_mid, self._ed_end], dtype=float).T.copy()
+
+    @property
+    def dv_lag(self) -> float:
+        """The speed a sub-step gains per unit of acceleration lag (for the same loops)."""
+        return self._dv_lag
+
     def clip_commands(self, a_cmd: float, delta_cmd: float) -> tuple[float, float]:
         p = self.params
         return (

@@ -56,3 +56,43 @@ def test_a_car_stopped_short_of_the_kerb_backs_off_in_the_learners_second_gear()
         assert not info["collision"]
         went_back = min(i["vehicle_state"].v for i in trace) < -0.05
         assert went_back == backs == (shield.gear_swaps > 0)
+
+
+def _chained(model, state, a_cmd, d_cmd, brake_steps):
+    """The filter's look-ahead as it was written in Python: ``step_rows``, then the brake."""
+    from planners.common.tracker import hold_accel
+
+    rows = model.step_rows(state, a_cmd, d_cmd)
+    poses, x = [r[:3] for r in rows], rows[-1][:6]
+    for _ in range(brake_steps):
+        if abs(x[3]) < 1e-3 and abs(x[4]) < 1e-2:
+            break
+        rows = model.step_rows(x, hold_accel(model.params, x[3], x[4]), x[5])
+        poses += [r[:3] for r in rows]
+        x = rows[-1][:6]
+    return np.array(poses)
+
+
+def test_the_compiled_look_ahead_repeats_the_truth_model_bit_for_bit():
+    from mirrorpark_env.vehicle import TruthModel, VehicleParams
+    from planners.rl.shield_kernel import BrakeRollout
+
+    p = VehicleParams.table_ii()
+    model = TruthModel(p, 0.1, 0.01)
+    roll = BrakeRollout(model)
+    rng = np.random.default_rng(3)
+    lengths = set()
+    for _ in range(300):  # moving and standing starts, in and beyond the command bounds
+        state = (
+            *rng.uniform(-20, 20, 2),
+            rng.uniform(-np.pi, np.pi),
+            rng.uniform(-2.5, 2.5) * rng.integers(0, 2),
+            rng.uniform(-3, 3),
+            rng.uniform(-0.7, 0.7),
+        )
+        a_cmd, d_cmd = rng.uniform(-5, 5), rng.uniform(-1, 1)
+        for steps in (0, 3, 40):
+            got, want = roll(state, a_cmd, d_cmd, steps), _chained(model, state, a_cmd, d_cmd, steps)
+            assert got.shape == want.shape and np.array_equal(got, want)
+            lengths.add(len(got))
+    assert min(lengths) == 10 and max(lengths) >= 300  # a standing car, and a long brake

@@ -28,6 +28,7 @@ from ..common.clearance import gaps
 from ..common.safety import MIN_GAP  # the tracking policies' stopping check keeps the same gap
 from ..common.tracker import hold_accel
 from .gear import STAND_SPEED
+from .shield_kernel import BrakeRollout
 
 BRAKE_STEPS = 40  # control steps of braking tried at most (4 s at 0.1 s)
 
@@ -38,7 +39,7 @@ class Shield:
     def __init__(self, geometry: ScenarioGeometry, dt: float = 0.1):
         self.g = geometry
         self.p = geometry.vehicle
-        self.model = TruthModel(self.p, dt, 0.01)
+        self.rollout = BrakeRollout(TruthModel(self.p, dt, 0.01))  # compiled: shield_kernel.py
 
     def decide(
         self, s: VehicleState, action: np.ndarray, second: Callable[[np.ndarray], np.ndarray] | None = None
@@ -56,20 +57,11 @@ class Shield:
 
     def clear(self, s: VehicleState, a_cmd: float, d_cmd: float) -> bool:
         """Whether one step of these commands, then the brake to a stand, keeps the gap."""
-        p = self.p
         state = (s.x, s.y, s.theta, s.v, s.a, s.delta)
         here = float(gaps(self.g.checker, np.array([state[:3]]), all_axes=True)[0])
         need = min(MIN_GAP, here)
-        rows = self.model.step_rows(state, a_cmd, d_cmd)
-        poses = [r[:3] for r in rows]
-        x = rows[-1][:6]
-        for _ in range(BRAKE_STEPS):
-            if abs(x[3]) < 1e-3 and abs(x[4]) < 1e-2:
-                break
-            rows = self.model.step_rows(x, hold_accel(p, x[3], x[4]), x[5])
-            poses += [r[:3] for r in rows]
-            x = rows[-1][:6]
-        return bool((gaps(self.g.checker, np.array(poses), all_axes=True) >= need - 1e-12).all())
+        poses = self.rollout(state, a_cmd, d_cmd, BRAKE_STEPS)
+        return bool((gaps(self.g.checker, poses, all_axes=True) >= need - 1e-12).all())
 
 
 class Shielded(Policy):
