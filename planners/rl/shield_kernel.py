@@ -58,7 +58,7 @@ def _brake_poses(state, a_cmd, d_cmd, brake_steps, lags, consts):  # pragma: no 
 
 
 class BrakeRollout:
-    """``brake_poses`` for one truth model: its sub-step constants, packed once."""
+    """The filter's look-ahead for one truth model, with its sub-step constants packed once."""
 
     def __init__(self, model: TruthModel) -> None:
         p = model.params
