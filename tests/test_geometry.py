@@ -85,3 +85,28 @@ def test_compiled_gaps_equal_the_checker_bit_for_bit(sc):
             np.testing.assert_array_equal(got, want)
             overlapping += int((want < 0).any())
     assert overlapping >= 3  # the own-axes stage was exercised
+
+
+@pytest.mark.parametrize("sc", SCENES, ids=lambda s: s.parking_type.value)
+def test_compiled_single_pose_verdict_equals_the_batch_kernel(sc):
+    """The search loops' ``_clear`` (one pose, early exit) says "clear by c" exactly where
+    ``gaps(..., all_axes=True) >= c``: checked at each pose's own gap and the next float
+    above it, so a verdict that differed by one rounding would fail."""
+    from planners.common.clearance import gap_kernel, gaps
+    from planners.common.kernels import _clear
+
+    g = sc.build()
+    args = gap_kernel(g.checker).args
+    rng = np.random.default_rng(12)
+    tx, ty, _ = g.target
+    n = 30000
+    poses = np.column_stack([tx + rng.normal(0, 4.0, n), ty + rng.uniform(-3.0, 6.0, n), rng.uniform(-4, 4, n)])
+    want = gaps(g.checker, poses, all_axes=True)
+    near = (want >= 0) & (want < 0.1)
+    pick = np.r_[np.flatnonzero(want < 0)[:1000], np.flatnonzero(near)[:500], np.flatnonzero(want >= 0.1)[:1000]]
+    assert len(pick) > 2000  # both verdicts, and gaps near the usual clearances
+    poses, want = poses[pick], want[pick]
+    for (x, y, th), gap in zip(poses, want):
+        c, s = math.cos(th), math.sin(th)
+        for clearance in (gap, np.nextafter(gap, np.inf), 0.05, -0.2):
+            assert _clear(x, y, c, s, clearance, *args) == (gap >= clearance)

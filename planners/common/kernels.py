@@ -94,6 +94,56 @@ def _gaps(poses, front, rear, hw, normals, pmin, pmax, verts, all_axes=False):  
     return out
 
 
+@njit(cache=True, nogil=True)
+def _clear(x, y, c, s, clearance, front, rear, hw, normals, pmin, pmax, verts):  # pragma: no cover - compiled
+    """Whether ``_gaps`` with ``all_axes`` gives the rear-axle pose (x, y, heading with
+    cosine ``c`` and sine ``s``) a gap of at least ``clearance``: the same values from
+    the same operations, so the same verdict bit for bit (a test checks it), without
+    allocating, and stopping at the first obstacle that decides it. For search loops that
+    test one pose at a time and already hold the heading's cosine and sine."""
+    k_n, v_n = normals.shape[0], normals.shape[1]
+    co = 0.5 * (front - rear)
+    hl = 0.5 * (front + rear)
+    ox = co * c + x
+    oy = co * s + y
+    # gap = -max_k m_k >= clearance  <=>  every m_k <= -clearance (negation is exact)
+    lim = -clearance
+    for k in range(k_n):
+        m = math.inf
+        for v in range(v_n):
+            nx = normals[k, v, 0]
+            ny = normals[k, v, 1]
+            pc = ox * nx + oy * ny
+            ext = abs(c * nx + s * ny) * hl + abs(c * ny + s * (-nx)) * hw
+            hi = min(pc + ext, pmax[k, v])
+            lo = max(pc - ext, pmin[k, v])
+            d = hi - lo
+            if d < m:
+                m = d
+        if m <= lim:
+            continue  # m_k = min(m, the footprint's axes) <= m: this obstacle is clear
+        umin = math.inf
+        umax = -math.inf
+        wmin = math.inf
+        wmax = -math.inf
+        for v in range(v_n):
+            vx = verts[k, v, 0]
+            vy = verts[k, v, 1]
+            pu = vx * c + vy * s
+            pw = vx * (-s) + vy * c
+            umin = min(umin, pu)
+            umax = max(umax, pu)
+            wmin = min(wmin, pw)
+            wmax = max(wmax, pw)
+        cu = ox * c + oy * s
+        cw = oy * c - ox * s
+        du = min(umax, cu + hl) - max(umin, cu - hl)
+        dw = min(wmax, cw + hw) - max(wmin, cw - hw)
+        if min(m, min(du, dw)) > lim:
+            return False
+    return True
+
+
 class FastGaps:
     """``gaps`` for one checker: lower bounds on each pose's distance to the nearest
     obstacle (< 0: overlap), compiled."""

@@ -28,7 +28,7 @@ from mirrorpark_env.config import StrictModel
 from mirrorpark_env.scenario import ScenarioGeometry
 
 from ..common.clearance import gap_kernel, gaps
-from ..common.kernels import _gaps
+from ..common.kernels import _clear
 from ..common.path import arc
 from ..common.slot_cache import SlotCache
 from ..common.turns import turn_chains
@@ -111,6 +111,17 @@ def _arc_pt(x, y, th, kappa, s):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def _arc_cs(x, y, th, c, s, kappa, length):  # pragma: no cover - compiled
+    """``_arc_pt``'s pose by its arithmetic, from the start heading's cosine ``c`` and sine
+    ``s``, with the end heading's cosine and sine: (x, y, theta, cos, sin)."""
+    t = th + kappa * length
+    if kappa != 0.0:
+        ct, st = math.cos(t), math.sin(t)
+        return x + (st - s) / kappa, y - (ct - c) / kappa, t, ct, st
+    return x + length * c, y + length * s, t, c, s
+
+
+@njit(cache=True)
 def _put(out, m, row):  # pragma: no cover - compiled
     """``out`` with ``row`` at index ``m``, grown (doubled) where it is full."""
     if m >= out.shape[0]:
@@ -132,11 +143,9 @@ def _entry_rows(tx, ty, tth, radius, ds, max_straight, clearance, gap_args):  # 
     n_a = int(0.6 * math.pi * radius / ds) + 1  # arcs to 108 degrees
     out = np.empty((4096, 8))
     m = 0
-    one = np.empty((1, 3))
 
     def clear(x, y, th):
-        one[0, 0], one[0, 1], one[0, 2] = x, y, th
-        return _gaps(one, front, rear, hw, normals, pmin, pmax, verts, True)[0] >= clearance
+        return _clear(x, y, math.cos(th), math.sin(th), clearance, front, rear, hw, normals, pmin, pmax, verts)
 
     for og in (1.0, -1.0):
         for i in range(n_s):
@@ -193,18 +202,18 @@ def _search(
                 V[sources[k], gi] = source_v[k, gi]
                 P[sources[k], gi] = source_pose[k]
                 n = _push(hk, hv, n, source_v[k, gi], sources[k] * 2 + gi)
-    two = np.empty((2, 3))
     while n > 0:
         key, node, n = _pop(hk, hv, n)
         s2, g2 = node // 2, node % 2
         if key > V[s2, g2]:
             continue  # a stale entry
         px, py, pth = float(P[s2, g2, 0]), float(P[s2, g2, 1]), float(P[s2, g2, 2])
+        pc, ps = math.cos(pth), math.sin(pth)
         for p in range(kappa.shape[0]):
             if (gear[p] > 0) != (g2 == 1):
                 continue  # p arrives at the node in its own gear
             k0 = key + cost[p]
-            qx, qy, qth = _arc_pt(px, py, pth, kappa[p], -gear[p] * step)
+            qx, qy, qth, qc, qs = _arc_cs(px, py, pth, pc, ps, kappa[p], -gear[p] * step)
             ix = int(math.floor((qx - x0) / res + 0.5)) - i0
             iy = int(math.floor((qy - y0) / res + 0.5)) - j0
             if ix < 0 or ix >= nx or iy < 0 or iy >= ny:
@@ -213,11 +222,10 @@ def _search(
             s = (ix * ny + iy) * nh + ih
             if k0 >= V[s, 0] and k0 >= V[s, 1]:
                 continue  # no improvement possible: skip the check
-            mx, my, mth = _arc_pt(px, py, pth, kappa[p], -0.5 * gear[p] * step)
-            two[0, 0], two[0, 1], two[0, 2] = qx, qy, qth
-            two[1, 0], two[1, 1], two[1, 2] = mx, my, mth
-            gp_ = _gaps(two, front, rear, hw, normals, pmin, pmax, verts, True)
-            if gp_[0] < clearance or gp_[1] < clearance:
+            if not _clear(qx, qy, qc, qs, clearance, front, rear, hw, normals, pmin, pmax, verts):
+                continue
+            mx, my, _, mc, ms = _arc_cs(px, py, pth, pc, ps, kappa[p], -0.5 * gear[p] * step)
+            if not _clear(mx, my, mc, ms, clearance, front, rear, hw, normals, pmin, pmax, verts):
                 continue
             for gp in range(2):  # the gear the car arrived at q in: a switch if not p's
                 k = k0 + (switch_cost if gp != g2 else 0.0)
