@@ -20,6 +20,49 @@ from mirrorpark_env.geometry import FootprintChecker
 
 
 @njit(cache=True, nogil=True)
+def _obstacle_axes(ox, oy, c, s, hl, hw, normals, pmin, pmax, k):  # pragma: no cover - compiled
+    """The least overlap of the footprint (centre (ox, oy), heading cosine ``c`` and sine
+    ``s``, half length ``hl``, half width ``hw``) with obstacle ``k`` along the obstacle's
+    own edge normals (<= 0: separated)."""
+    m = math.inf
+    for v in range(normals.shape[1]):
+        nx = normals[k, v, 0]
+        ny = normals[k, v, 1]
+        pc = ox * nx + oy * ny
+        ext = abs(c * nx + s * ny) * hl + abs(c * ny + s * (-nx)) * hw
+        hi = min(pc + ext, pmax[k, v])
+        lo = max(pc - ext, pmin[k, v])
+        d = hi - lo
+        if d < m:
+            m = d
+    return m
+
+
+@njit(cache=True, nogil=True)
+def _own_axes(ox, oy, c, s, hl, hw, verts, k):  # pragma: no cover - compiled
+    """The least overlap of the same footprint with obstacle ``k`` along the footprint's
+    own two axes."""
+    umin = math.inf
+    umax = -math.inf
+    wmin = math.inf
+    wmax = -math.inf
+    for v in range(verts.shape[1]):
+        vx = verts[k, v, 0]
+        vy = verts[k, v, 1]
+        pu = vx * c + vy * s
+        pw = vx * (-s) + vy * c
+        umin = min(umin, pu)
+        umax = max(umax, pu)
+        wmin = min(wmin, pw)
+        wmax = max(wmax, pw)
+    cu = ox * c + oy * s
+    cw = oy * c - ox * s
+    du = min(umax, cu + hl) - max(umin, cu - hl)
+    dw = min(wmax, cw + hw) - max(wmin, cw - hw)
+    return min(du, dw)
+
+
+@njit(cache=True, nogil=True)
 def _gaps(poses, front, rear, hw, normals, pmin, pmax, verts, all_axes=False):  # pragma: no cover - compiled
     """Gaps (P,) of the footprint at rear-axle poses (P, 3) to obstacles given as (K, V, 2) arrays.
 
@@ -28,7 +71,7 @@ def _gaps(poses, front, rear, hw, normals, pmin, pmax, verts, all_axes=False):  
     batch is not separated by an obstacle's axes.
     """
     n = poses.shape[0]
-    k_n, v_n = normals.shape[0], normals.shape[1]
+    k_n = normals.shape[0]
     co = 0.5 * (front - rear)
     hl = 0.5 * (front + rear)
     ov = np.empty((n, k_n))
@@ -45,49 +88,18 @@ def _gaps(poses, front, rear, hw, normals, pmin, pmax, verts, all_axes=False):  
         oc[p, 0] = ox
         oc[p, 1] = oy
         for k in range(k_n):
-            m = math.inf
-            for v in range(v_n):
-                nx = normals[k, v, 0]
-                ny = normals[k, v, 1]
-                pc = ox * nx + oy * ny
-                ext = abs(c * nx + s * ny) * hl + abs(c * ny + s * (-nx)) * hw
-                hi = min(pc + ext, pmax[k, v])
-                lo = max(pc - ext, pmin[k, v])
-                d = hi - lo
-                if d < m:
-                    m = d
+            m = _obstacle_axes(ox, oy, c, s, hl, hw, normals, pmin, pmax, k)
             ov[p, k] = m
             if m > 0:
                 overlap = True
     overlap = overlap or all_axes
     out = np.empty(n)
     for p in range(n):
-        c = cs[p, 0]
-        s = cs[p, 1]
-        ox = oc[p, 0]
-        oy = oc[p, 1]
         best = -math.inf
         for k in range(k_n):
             m = ov[p, k]
             if overlap:
-                umin = math.inf
-                umax = -math.inf
-                wmin = math.inf
-                wmax = -math.inf
-                for v in range(v_n):
-                    vx = verts[k, v, 0]
-                    vy = verts[k, v, 1]
-                    pu = vx * c + vy * s
-                    pw = vx * (-s) + vy * c
-                    umin = min(umin, pu)
-                    umax = max(umax, pu)
-                    wmin = min(wmin, pw)
-                    wmax = max(wmax, pw)
-                cu = ox * c + oy * s
-                cw = oy * c - ox * s
-                du = min(umax, cu + hl) - max(umin, cu - hl)
-                dw = min(wmax, cw + hw) - max(wmin, cw - hw)
-                m = min(m, min(du, dw))
+                m = min(m, _own_axes(oc[p, 0], oc[p, 1], cs[p, 0], cs[p, 1], hl, hw, verts, k))
             if m > best:
                 best = m
         out[p] = -best
@@ -101,45 +113,17 @@ def _clear(x, y, c, s, clearance, front, rear, hw, normals, pmin, pmax, verts): 
     the same operations, so the same verdict bit for bit (a test checks it), without
     allocating, and stopping at the first obstacle that decides it. For search loops that
     test one pose at a time and already hold the heading's cosine and sine."""
-    k_n, v_n = normals.shape[0], normals.shape[1]
     co = 0.5 * (front - rear)
     hl = 0.5 * (front + rear)
     ox = co * c + x
     oy = co * s + y
     # gap = -max_k m_k >= clearance  <=>  every m_k <= -clearance (negation is exact)
     lim = -clearance
-    for k in range(k_n):
-        m = math.inf
-        for v in range(v_n):
-            nx = normals[k, v, 0]
-            ny = normals[k, v, 1]
-            pc = ox * nx + oy * ny
-            ext = abs(c * nx + s * ny) * hl + abs(c * ny + s * (-nx)) * hw
-            hi = min(pc + ext, pmax[k, v])
-            lo = max(pc - ext, pmin[k, v])
-            d = hi - lo
-            if d < m:
-                m = d
+    for k in range(normals.shape[0]):
+        m = _obstacle_axes(ox, oy, c, s, hl, hw, normals, pmin, pmax, k)
         if m <= lim:
             continue  # m_k = min(m, the footprint's axes) <= m: this obstacle is clear
-        umin = math.inf
-        umax = -math.inf
-        wmin = math.inf
-        wmax = -math.inf
-        for v in range(v_n):
-            vx = verts[k, v, 0]
-            vy = verts[k, v, 1]
-            pu = vx * c + vy * s
-            pw = vx * (-s) + vy * c
-            umin = min(umin, pu)
-            umax = max(umax, pu)
-            wmin = min(wmin, pw)
-            wmax = max(wmax, pw)
-        cu = ox * c + oy * s
-        cw = oy * c - ox * s
-        du = min(umax, cu + hl) - max(umin, cu - hl)
-        dw = min(wmax, cw + hw) - max(wmin, cw - hw)
-        if min(m, min(du, dw)) > lim:
+        if min(m, _own_axes(ox, oy, c, s, hl, hw, verts, k)) > lim:
             return False
     return True
 

@@ -102,18 +102,9 @@ def _pop(hk, hv, n):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _arc_pt(x, y, th, kappa, s):  # pragma: no cover - compiled
-    """The pose a signed arc length ``s`` along curvature ``kappa`` from (x, y, th)."""
-    t = th + kappa * s
-    if kappa != 0.0:
-        return x + (math.sin(t) - math.sin(th)) / kappa, y - (math.cos(t) - math.cos(th)) / kappa, t
-    return x + s * math.cos(th), y + s * math.sin(th), t
-
-
-@njit(cache=True)
 def _arc_cs(x, y, th, c, s, kappa, length):  # pragma: no cover - compiled
-    """``_arc_pt``'s pose by its arithmetic, from the start heading's cosine ``c`` and sine
-    ``s``, with the end heading's cosine and sine: (x, y, theta, cos, sin)."""
+    """The pose a signed arc length ``length`` along curvature ``kappa`` from (x, y, th),
+    given th's cosine ``c`` and sine ``s``, with the end heading's: (x, y, theta, cos, sin)."""
     t = th + kappa * length
     if kappa != 0.0:
         ct, st = math.cos(t), math.sin(t)
@@ -158,7 +149,7 @@ def _entry_rows(tx, ty, tth, radius, ds, max_straight, clearance, gap_args):  # 
             for turn in (1.0, -1.0):
                 for j in range(1, n_a):
                     a = j * ds
-                    x2, y2, th2 = _arc_pt(x1, y1, tth, turn / radius, og * a)
+                    x2, y2, th2, _, _ = _arc_cs(x1, y1, tth, math.cos(tth), math.sin(tth), turn / radius, og * a)
                     if not clear(x2, y2, th2):
                         break
                     for k in range(n_s):
