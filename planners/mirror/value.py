@@ -134,28 +134,29 @@ def _entry_rows(tx, ty, tth, radius, ds, max_straight, clearance, gap_args):  # 
     n_a = int(0.6 * math.pi * radius / ds) + 1  # arcs to 108 degrees
     out = np.empty((4096, 8))
     m = 0
+    c0, s0 = math.cos(tth), math.sin(tth)
 
-    def clear(x, y, th):
-        return _clear(x, y, math.cos(th), math.sin(th), clearance, front, rear, hw, normals, pmin, pmax, verts)
+    def clear(x, y, c, s):
+        return _clear(x, y, c, s, clearance, front, rear, hw, normals, pmin, pmax, verts)
 
     for og in (1.0, -1.0):
         for i in range(n_s):
             s1 = i * ds
-            x1, y1 = tx + og * s1 * math.cos(tth), ty + og * s1 * math.sin(tth)
-            if not clear(x1, y1, tth):
+            x1, y1 = tx + og * s1 * c0, ty + og * s1 * s0
+            if not clear(x1, y1, c0, s0):
                 break
             out = _put(out, m, (x1, y1, tth, og, s1, 0.0, 0.0, 0.0))
             m += 1
             for turn in (1.0, -1.0):
                 for j in range(1, n_a):
                     a = j * ds
-                    x2, y2, th2, _, _ = _arc_cs(x1, y1, tth, math.cos(tth), math.sin(tth), turn / radius, og * a)
-                    if not clear(x2, y2, th2):
+                    x2, y2, th2, ca, sa = _arc_cs(x1, y1, tth, c0, s0, turn / radius, og * a)
+                    if not clear(x2, y2, ca, sa):
                         break
                     for k in range(n_s):
                         s2 = k * ds
-                        x3, y3 = x2 + og * s2 * math.cos(th2), y2 + og * s2 * math.sin(th2)
-                        if k > 0 and not clear(x3, y3, th2):
+                        x3, y3 = x2 + og * s2 * ca, y2 + og * s2 * sa
+                        if k > 0 and not clear(x3, y3, ca, sa):
                             break
                         out = _put(out, m, (x3, y3, th2, og, s1, turn / radius, a, s2))
                         m += 1
