@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from evaluation.collect import collect, dataset_id
+from evaluation.collect import build_dataset, collect, dataset_id
 from mirrorpark_env import Scenario
 
 CASES = ["reverse_rw6.00_sl4.82_sw2.32_th+40_y3.00", "angle_rw3.50_sl4.82_sw2.77_th+10_y1.30"]
@@ -33,6 +33,14 @@ def test_collected_episodes_load_with_minari_and_replay_exactly(tmp_path, requir
             assert info["is_success"] == ep.infos["is_success"][t + 1, 0]
         assert ep.terminations[-1] or ep.truncations[-1]  # every episode ends one way or the other
     assert ep.infos["is_success"][-1, 0]  # these easy cases park
+    assert ds.storage.metadata["total_steps"] == sum(m["total_steps"] for m in meta)
+    # The dataset's size is measured once, after the last episode (Minari re-measures after
+    # each one, which is quadratic): it must still be the folder's size. Twenty episodes
+    # make it large enough not to round to 0 MB.
+    files = sorted((tmp_path / "episodes").glob("*.npz")) * 10
+    big = minari.MinariDataset(build_dataset("mirror", files, tmp_path / "big") / "data")
+    assert big.total_episodes == 20
+    assert big.storage.metadata["dataset_size"] == big.storage.get_size() > 0
 
 
 def test_collection_resumes_without_redoing_episodes(tmp_path, require_module):
