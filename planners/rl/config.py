@@ -155,8 +155,33 @@ def algo_class(name: str):
 
 
 def load_rl_config(path: str | Path | None = None, overrides: dict[str, Any] | None = None) -> RLConfig:
-    """``configs/rl.yaml`` (or ``path``) with ``overrides``, validated field by field."""
+    """``configs/rl.yaml`` (or ``path``, with the files it ``extends``) with ``overrides``
+    (whole top-level fields), validated field by field."""
     p = Path(path) if path is not None else default_config_path("rl.yaml")
-    data = read_yaml(p)
+    data = read_recipe(p)
     data.update({k: v for k, v in (overrides or {}).items() if v is not None})
     return validate(RLConfig, data, source=p.name)
+
+
+def read_recipe(path: str | Path, _chain: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """A recipe file's mapping. ``extends: FILE`` (relative to the file) starts from FILE's
+    recipe and changes only what this file names, nested sections key by key, so that a
+    recipe says how it differs from the one it builds on."""
+    p = Path(path).resolve()
+    if p in _chain:
+        raise ValueError(f"{p.name}: extends: a cycle ({' -> '.join(q.name for q in (*_chain, p))})")
+    data = read_yaml(p)
+    base = data.pop("extends", None)
+    if base is None:
+        return data
+    if not isinstance(base, str) or not base:
+        raise ValueError(f"{p.name}: extends: must be a YAML file name, relative to this file, got {base!r}")
+    return _merged(read_recipe(p.parent / base, (*_chain, p)), data)
+
+
+def _merged(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for key, value in changes.items():
+        old = out.get(key)
+        out[key] = _merged(old, value) if isinstance(value, dict) and isinstance(old, dict) else value
+    return out
