@@ -237,16 +237,16 @@ def default_env() -> EnvConfig:
 
 def merge(base: BaseModel, overrides: dict[str, Any] | None, source: str = "config") -> Any:
     """``base`` with ``overrides`` merged in (nested dicts merge key by key), validated."""
-    data = base.model_dump()
+    return validate(type(base), merged(base.model_dump(), overrides or {}), source=source)
 
-    def deep(d: dict[str, Any], o: dict[str, Any]) -> dict[str, Any]:
-        for k, v in o.items():
-            if isinstance(v, BaseModel):
-                v = v.model_dump()
-            if isinstance(v, dict) and isinstance(d.get(k), dict):
-                d[k] = deep(dict(d[k]), v)
-            else:
-                d[k] = v
-        return d
 
-    return validate(type(base), deep(data, overrides or {}), source=source)
+def merged(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
+    """A copy of ``base`` with ``changes``: nested dicts merge key by key, anything else
+    (a model given as a value counts as its dict) replaces."""
+    out = dict(base)
+    for k, v in changes.items():
+        if isinstance(v, BaseModel):
+            v = v.model_dump()
+        old = out.get(k)
+        out[k] = merged(old, v) if isinstance(v, dict) and isinstance(old, dict) else v
+    return out

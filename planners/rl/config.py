@@ -13,6 +13,7 @@ from mirrorpark_env.config import (
     ParkingTypeName,
     StrictModel,
     default_config_path,
+    merged,
     read_yaml,
     validate,
 )
@@ -176,12 +177,4 @@ def read_recipe(path: str | Path, _chain: tuple[Path, ...] = ()) -> dict[str, An
         return data
     if not isinstance(base, str) or not base:
         raise ValueError(f"{p.name}: extends: must be a YAML file name, relative to this file, got {base!r}")
-    return _merged(read_recipe(p.parent / base, (*_chain, p)), data)
-
-
-def _merged(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
-    out = dict(base)
-    for key, value in changes.items():
-        old = out.get(key)
-        out[key] = _merged(old, value) if isinstance(value, dict) and isinstance(old, dict) else value
-    return out
+    return merged(read_recipe(p.parent / base, (*_chain, p)), data)
