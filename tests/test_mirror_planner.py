@@ -228,7 +228,8 @@ def test_obstacle_rows_are_one_row_per_alternative_exact_at_the_reference():
     assert len(rows.h_u) == len(rows.active) == n_rows
     for d in rows.disj:
         assert len(set(d.rows)) == len(d.rows) and all(1 <= r < n_rows for r in d.rows)
-    G = sp.csr_matrix((rows.g_vals, (rows.g_rows, rows.g_cols)), shape=(n_rows, ix(pl.N, 5) + 1))
+    g_rows, g_cols, g_vals = rows.triplets()
+    G = sp.csr_matrix((g_vals, (g_rows, g_cols)), shape=(n_rows, ix(pl.N, 5) + 1))
     z = np.zeros(G.shape[1])
     z[[ix(i, 0), ix(i, 1), ix(i, 2)]] = pose[:3]
     value = G @ z - np.array(rows.active)
@@ -245,6 +246,69 @@ def test_obstacle_rows_are_one_row_per_alternative_exact_at_the_reference():
         if np.hypot(*(q - centre)) <= 0.5 * P.length + 1.5:
             expected += [float((R @ nb) @ (q - P0)) - off - obs.margin for nb, off in obs.car_faces]
     np.testing.assert_allclose(value[1:], expected, atol=1e-9)
+
+
+def test_obstacle_rows_of_many_pairs_after_a_switch_are_each_pairs_own():
+    """Rows built for many (step, obstacle) pairs at once, some after the switch (real p =
+    2 S - p planned): each pair's rows are those it gets alone, bit for bit, in the sorted
+    pairs' order; at the reference each row's value less its bound is the face's exact
+    clearance less the margin; each disjunction prefers its alternative with most room."""
+    from planners.mirror.layout import ix, switch_index
+    from planners.mirror.obstacles import Rows
+
+    g = Scenario.from_degrees("parallel", 5.0, 6.0, 2.5, 0, 1.6).build()
+    pl = MirrorPlanner(g)
+    obs = pl.qp.obstacles
+    tx, ty, tth = g.target
+    N, s = pl.N, 12
+    t = np.linspace(0.0, 1.0, 2 * N + 1)
+    real = np.zeros((2 * N + 1, 6))  # sweeping into the slot's mouth, turning
+    real[:, 0], real[:, 1], real[:, 2] = tx + 3.0 - 3.5 * t, ty + 1.6 - 1.3 * t, tth + 0.5 * np.sin(3 * t)
+    cand = Candidate(-1, s)
+    pairs = {(i, k): None for i in (3, 9, 12, 13, 20, 31) for k in range(len(obs.faces))}
+    rows = Rows()
+    rows.h_l.append(0.0), rows.h_u.append(np.inf), rows.active.append(0.0)  # a row 0, as the mirror line's
+    obs.add(rows, cand, real, pairs)
+    assert len(rows.disj) > 10 and any(i > s for i, _ in pairs)
+
+    def triplets(r):
+        return sorted(zip(*(a.tolist() for a in r.triplets())))
+
+    one_by_one = Rows()
+    one_by_one.h_l.append(0.0), one_by_one.h_u.append(np.inf), one_by_one.active.append(0.0)
+    for pair in sorted(pairs):
+        obs.add(one_by_one, cand, real, {pair: None})
+    assert triplets(rows) == triplets(one_by_one)
+    for name in ("h_l", "h_u", "active", "disj", "preferred"):
+        assert getattr(rows, name) == getattr(one_by_one, name), name
+
+    n_rows = len(rows.h_l)
+    iS = switch_index(N)
+    g_rows, g_cols, g_vals = rows.triplets()
+    G = sp.csr_matrix((g_vals, (g_rows, g_cols)), shape=(n_rows, iS + 2))
+    ref = real[::2]
+    S = ref[s, :2]
+    z = np.zeros(G.shape[1])
+    z[iS : iS + 2] = S
+    for i in range(N + 1):
+        p = ref[i, :2] if i <= s else 2 * S - ref[i, :2]  # the planned (mirror-frame) position
+        z[[ix(i, 0), ix(i, 1), ix(i, 2)]] = (*p, ref[i, 2])
+    value = G @ z - np.array(rows.active)
+    expected = [0.0]
+    for i, k in sorted(pairs):
+        P0, th = ref[i, :2], ref[i, 2]
+        R = np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
+        for c in obs.points:
+            slack = [float(n @ (P0 + R @ c)) - b for n, b in obs.faces[k]]
+            if slack and max(slack) <= 1.0:
+                expected += [s_ - obs.margin for s_ in slack]
+        centre = P0 + P.center_offset * np.array([math.cos(th), math.sin(th)])
+        for q in obs.vertices[k]:
+            if np.hypot(*(q - centre)) <= 0.5 * P.length + 1.5:
+                expected += [float((R @ nb) @ (q - P0)) - off - obs.margin for nb, off in obs.car_faces]
+    np.testing.assert_allclose(value, expected, atol=1e-9)
+    for d, best in zip(rows.disj, rows.preferred):
+        assert best == d.rows[int(np.argmax(value[list(d.rows)]))]
 
 
 def test_the_papers_linearised_model_against_a_step_by_hand():

@@ -25,7 +25,10 @@ from .solvers import INACTIVE, Disjunction
 
 @dataclass
 class Rows:
-    """Inequality rows h_l <= G z <= h_u as triplets, with the disjunctions among them."""
+    """Inequality rows h_l <= G z <= h_u as triplets, with the disjunctions among them.
+
+    Triplets come as lists (a few rows) and as array blocks (``extend``); ``triplets``
+    joins them."""
 
     g_rows: list[int] = field(default_factory=list)
     g_cols: list[int] = field(default_factory=list)
@@ -35,32 +38,17 @@ class Rows:
     active: list[float] = field(default_factory=list)  # each row's lower bound when it is enforced
     disj: list[Disjunction] = field(default_factory=list)
     preferred: list[int] = field(default_factory=list)  # per disjunction, the row the reference satisfies best
+    blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
 
-    def add_row(self, i: int, iS: int, coef_p, coef_th: float, sign: float, twice: float) -> int:
-        """A row on the real pose at step ``i`` (real p = sign * p_i + twice * S); its index."""
-        r = len(self.h_u)  # h_u grows per row at once, h_l only when the group is registered
-        self.g_rows.extend([r, r, r])
-        self.g_cols.extend([ix(i, XI_X), ix(i, XI_Y), ix(i, XI_TH)])
-        self.g_vals.extend([sign * coef_p[0], sign * coef_p[1], coef_th])
-        if twice:
-            self.g_rows.extend([r, r])
-            self.g_cols.extend([iS, iS + 1])
-            self.g_vals.extend([twice * coef_p[0], twice * coef_p[1]])
-        self.h_u.append(np.inf)
-        return r
+    def extend(self, g_rows: np.ndarray, g_cols: np.ndarray, g_vals: np.ndarray) -> None:
+        """Add a block of triplets."""
+        self.blocks.append((g_rows, g_cols, g_vals))
 
-    def register(self, alts: list[tuple[int, float]], best: int) -> None:
-        """Close the rows just added as one constraint (a single face) or a disjunction."""
-        if len(alts) == 1:  # a single face: an ordinary constraint
-            _, lo = alts[0]
-            self.h_l.append(lo)
-            self.active.append(lo)
-            return
-        for _, lo in alts:
-            self.h_l.append(INACTIVE)
-            self.active.append(lo)
-        self.disj.append(Disjunction(tuple(r for r, _ in alts)))
-        self.preferred.append(alts[best][0])
+    def triplets(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(rows, cols, values) of every triplet."""
+        parts = [(np.asarray(self.g_rows, np.int64), np.asarray(self.g_cols, np.int64), np.asarray(self.g_vals, float))]
+        parts += self.blocks
+        return tuple(np.concatenate([p[j] for p in parts]) for j in range(3))
 
 
 class ObstacleRows:
@@ -94,49 +82,119 @@ class ObstacleRows:
             (np.array([0.0, -1.0]), hw),
         )
 
+        # The same, padded into arrays (a mask marks the real entries) for ``add``.
+        n_f = max([len(f) for f in self.faces] + [1])
+        n_v = max([len(v) for v in self.vertices] + [1])
+        n_o = len(self.faces)
+        self._f0, self._f1, self._foff = np.zeros((n_o, n_f)), np.zeros((n_o, n_f)), np.zeros((n_o, n_f))
+        self._fvalid = np.zeros((n_o, n_f), bool)
+        self._nfaces = np.array([len(f) for f in self.faces], np.int64)
+        self._v0, self._v1 = np.zeros((n_o, n_v)), np.zeros((n_o, n_v))
+        self._vvalid = np.zeros((n_o, n_v), bool)
+        for k, (faces, verts) in enumerate(zip(self.faces, self.vertices)):
+            for f, (nrm, off) in enumerate(faces):
+                self._f0[k, f], self._f1[k, f], self._foff[k, f], self._fvalid[k, f] = nrm[0], nrm[1], off, True
+            for v, q in enumerate(verts):
+                self._v0[k, v], self._v1[k, v], self._vvalid[k, v] = q[0], q[1], True
+        self._b0 = np.array([nb[0] for nb, _ in self.car_faces])
+        self._b1 = np.array([nb[1] for nb, _ in self.car_faces])
+        self._boff = np.array([off for _, off in self.car_faces], float)
+
     def add(self, rows: Rows, cand: Candidate, ref_real: np.ndarray, theta_set) -> None:
-        """Rows at the (step, obstacle) pairs in ``theta_set``, linearised about ``ref_real``."""
+        """Rows at the (step, obstacle) pairs in ``theta_set``, linearised about ``ref_real``.
+
+        Per pair, in sorted order: each feature point that is within 1 m of the obstacle's
+        faces, behind one of them (a row per face: a disjunction, or a plain row where the
+        obstacle has one useful face); then each obstacle vertex within reach of the car,
+        behind one of the car's four faces. The preferred alternative of a disjunction is
+        the one the reference satisfies best. Computed for all pairs at once; each value keeps
+        the order of operations of the formula for one point and one face, so that the QPs
+        (and every committed result) stay the same to the last bit."""
+        pairs = sorted(theta_set)
+        if not pairs:
+            return
         ref = ref_real[:: self.substeps]  # real states at the control steps
-        for i, k in sorted(theta_set):
-            sign, twice = real_pose_coeffs(i, cand)
-            th = ref[i, XI_TH]
-            ct, st_ = math.cos(th), math.sin(th)
-            self._points_outside(rows, i, k, ref[i, :2], th, ct, st_, sign, twice)
-            self._vertices_outside(rows, i, k, ref[i, :2], th, ct, st_, sign, twice)
+        step = np.array([i for i, _ in pairs])
+        obs = np.array([k for _, k in pairs])
+        th = ref[step, XI_TH]
+        ct = np.array([math.cos(t) for t in th.tolist()])[:, None, None]
+        st = np.array([math.sin(t) for t in th.tolist()])[:, None, None]
+        px, py = ref[step, XI_X][:, None, None], ref[step, XI_Y][:, None, None]
+        th = th[:, None, None]
+        sign, twice = np.array([real_pose_coeffs(i, cand) for i in step.tolist()]).T  # real p = sign p + twice S
 
-    def _points_outside(self, rows, i, k, Pbar, th, ct, st_, sign, twice) -> None:
-        """Each feature point behind one face of obstacle ``k``."""
-        faces = self.faces[k]
-        for cx, cy in self.points:
-            rc = np.array([ct * cx - st_ * cy, st_ * cx + ct * cy])  # R(th) c
-            drc = np.array([-st_ * cx - ct * cy, ct * cx - st_ * cy])  # dR/dth c
-            q_ref = Pbar + rc
-            slack = [float(nrm @ q_ref) - off for nrm, off in faces]
-            if not faces or max(slack) > 1.0:
-                continue  # far outside: this point cannot reach the obstacle here
-            alts = []
-            for nrm, off in faces:
-                coef_th = float(nrm @ drc)
-                lower = off + self.margin - float(nrm @ (rc - th * drc))
-                alts.append((rows.add_row(i, self.iS, nrm, coef_th, sign, twice), lower))
-            rows.register(alts, int(np.argmax(slack)))
+        # Feature points (axis 1) behind faces (axis 2) of the pair's obstacle.
+        f0, f1, off = self._f0[obs][:, None, :], self._f1[obs][:, None, :], self._foff[obs][:, None, :]
+        cx, cy = self.points[None, :, 0, None], self.points[None, :, 1, None]
+        rc0, rc1 = ct * cx - st * cy, st * cx + ct * cy  # R(th) c
+        drc0, drc1 = -st * cx - ct * cy, ct * cx - st * cy  # dR/dth c
+        slack_p = f0 * (px + rc0) + f1 * (py + rc1) - off
+        slack_p = np.where(self._fvalid[obs][:, None, :], slack_p, -np.inf)
+        near_p = self._fvalid[obs][:, None, :] & (slack_p.max(axis=2) <= 1.0)[:, :, None]
+        coef_p = f0 * drc0 + f1 * drc1
+        lower_p = off + self.margin - (f0 * (rc0 - th * drc0) + f1 * (rc1 - th * drc1))
+        n0_p, n1_p = np.broadcast_to(f0, slack_p.shape), np.broadcast_to(f1, slack_p.shape)
 
-    def _vertices_outside(self, rows, i, k, Pbar, th, ct, st_, sign, twice) -> None:
-        """Each nearby vertex of obstacle ``k`` behind one face of the car."""
-        centre = Pbar + self.params.center_offset * np.array([ct, st_])
-        for q in self.vertices[k]:
-            if np.hypot(*(q - centre)) > 0.5 * self.params.length + 1.5:
-                continue
-            alts, slack = [], []
-            for nb, off in self.car_faces:
-                nw = np.array([ct * nb[0] - st_ * nb[1], st_ * nb[0] + ct * nb[1]])
-                dnw = np.array([-st_ * nb[0] - ct * nb[1], ct * nb[0] - st_ * nb[1]])
-                # nw(th).(q - P) >= off + margin, linearised about (th, Pbar)
-                k_th = float(dnw @ (q - Pbar))
-                lower = off + self.margin - float(nw @ q) + k_th * th
-                alts.append((rows.add_row(i, self.iS, -nw, k_th, sign, twice), lower))
-                slack.append(float(nw @ (q - Pbar)) - off)
-            rows.register(alts, int(np.argmax(slack)))
+        # Obstacle vertices (axis 1) behind the car's faces (axis 2).
+        q0, q1 = self._v0[obs][:, :, None], self._v1[obs][:, :, None]
+        co = self.params.center_offset
+        dist = np.hypot(q0 - (px + co * ct), q1 - (py + co * st))
+        near_v = self._vvalid[obs][:, :, None] & (dist <= 0.5 * self.params.length + 1.5)
+        b0, b1, boff = self._b0, self._b1, self._boff
+        nw0, nw1 = ct * b0 - st * b1, st * b0 + ct * b1
+        dnw0, dnw1 = -st * b0 - ct * b1, ct * b0 - st * b1
+        d0, d1 = q0 - px, q1 - py
+        coef_v = dnw0 * d0 + dnw1 * d1
+        lower_v = boff + self.margin - (nw0 * q0 + nw1 * q1) + coef_v * th
+        slack_v = nw0 * d0 + nw1 * d1 - boff
+
+        def flat(a_p, a_v):  # per pair: the points' rows, then the vertices'
+            n = len(pairs)
+            a_p, a_v = np.broadcast_to(a_p, slack_p.shape), np.broadcast_to(a_v, slack_v.shape)
+            return np.concatenate([a_p.reshape(n, -1), a_v.reshape(n, -1)], axis=1).reshape(-1)
+
+        keep = flat(near_p, near_v)
+        n_alt = flat(np.broadcast_to(self._nfaces[obs][:, None, None], slack_p.shape), np.full(slack_v.shape, 4))
+        group = np.cumsum(flat(np.arange(slack_p.shape[2]) == 0, np.arange(4) == 0)) - 1
+        pair = np.repeat(np.arange(len(pairs)), slack_p[0].size + slack_v[0].size)
+        keep_i = np.flatnonzero(keep)
+        k_group, k_pair, k_alts = group[keep_i], pair[keep_i], n_alt[keep_i]
+        lower, slack = flat(lower_p, lower_v)[keep_i], flat(slack_p, slack_v)[keep_i]
+        c0 = flat(n0_p, -nw0)[keep_i]
+        c1 = flat(n1_p, -nw1)[keep_i]
+        c_th = flat(coef_p, coef_v)[keep_i]
+
+        r0, n_rows = len(rows.h_u), len(keep_i)
+        r = r0 + np.arange(n_rows)
+        rows_sign, rows_twice = sign[k_pair], twice[k_pair]
+        base = ix(step[k_pair], XI_X)
+        rows.extend(
+            np.repeat(r, 3),
+            np.stack([base, base + (XI_Y - XI_X), base + (XI_TH - XI_X)], axis=1).reshape(-1),
+            np.stack([rows_sign * c0, rows_sign * c1, c_th], axis=1).reshape(-1),
+        )
+        tw = np.flatnonzero(rows_twice != 0.0)
+        if len(tw):
+            rows.extend(
+                np.repeat(r[tw], 2),
+                np.tile([self.iS, self.iS + 1], len(tw)),
+                np.stack([rows_twice[tw] * c0[tw], rows_twice[tw] * c1[tw]], axis=1).reshape(-1),
+            )
+        rows.h_u.extend([np.inf] * n_rows)
+        single = k_alts == 1  # a single face: an ordinary constraint
+        rows.h_l.extend(np.where(single, lower, INACTIVE).tolist())
+        rows.active.extend(lower.tolist())
+        if n_rows == 0:
+            return
+        starts = np.flatnonzero(np.r_[True, k_group[1:] != k_group[:-1]])
+        sizes = np.diff(np.r_[starts, n_rows])
+        # Each group's first row of most room (np.argmax's choice).
+        top = np.flatnonzero(slack == np.repeat(np.maximum.reduceat(slack, starts), sizes))
+        best = top[np.r_[True, k_group[top[1:]] != k_group[top[:-1]]]]
+        for a, b, pref in zip(starts.tolist(), (starts + sizes).tolist(), best.tolist()):
+            if b - a > 1:
+                rows.disj.append(Disjunction(tuple(range(r0 + a, r0 + b))))
+                rows.preferred.append(r0 + pref)
 
 
 def useful_features(g: ScenarioGeometry):

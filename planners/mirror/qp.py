@@ -151,18 +151,17 @@ class MirrorQP:
     def _inequalities(self, rows: Rows, n_s: int, nz: int) -> sp.csc_matrix:
         """G with one slack column per row."""
         # Triplets to CSC through CscPattern: scipy's COO route costs ~4x as much per call.
-        vals = np.concatenate([rows.g_vals, np.ones(n_s)])
+        g_rows, g_cols, g_vals = rows.triplets()
+        vals = np.concatenate([g_vals, np.ones(n_s)])
         if n_s == 2:  # the switch rows alone: one pattern per switch step, refilled
-            key = rows.g_cols[2]
+            key = int(g_cols[2])
             if key not in self._g_switch:
                 self._g_switch[key] = CscPattern(
-                    np.concatenate([rows.g_rows, [0, 1]]),
-                    np.concatenate([rows.g_cols, self.nz + np.arange(2)]),
-                    (2, nz),
+                    np.concatenate([g_rows, [0, 1]]), np.concatenate([g_cols, self.nz + np.arange(2)]), (2, nz)
                 )
             return self._g_switch[key].matrix(vals)
-        g_rows = np.concatenate([rows.g_rows, np.arange(n_s)])
-        g_cols = np.concatenate([rows.g_cols, self.nz + np.arange(n_s)])
+        g_rows = np.concatenate([g_rows, np.arange(n_s)])
+        g_cols = np.concatenate([g_cols, self.nz + np.arange(n_s)])
         return CscPattern(g_rows, g_cols, (n_s, nz)).matrix(vals)
 
     def _eq_pattern(self, s: int | None) -> CscPattern:

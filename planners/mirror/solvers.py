@@ -99,7 +99,7 @@ class CscPattern:
 
 
 def _same_pattern(a: sp.csc_matrix | None, b: sp.csc_matrix | None) -> bool:
-    if a is None or b is None:
+    if a is None or b is None or a is b:
         return a is b
     return (
         a.shape == b.shape
