@@ -80,7 +80,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.export:
         from .store import export_table
 
-        print(f"wrote {export_table(df, args.export, args.planner, args.chunk)}", file=sys.stderr)
+        envs = store.environments()  # every run into this results folder
+        print(f"wrote {export_table(df, args.export, args.planner, args.chunk, envs)}", file=sys.stderr)
     s = summary(df, args.planner)
     if args.layouts:
         from .layout_report import write_layout_report

@@ -22,6 +22,7 @@ from mirrorpark_env.scenario import Scenario
 from mirrorpark_env.vehicle import VehicleParams
 
 from .causes import episode_cause
+from .provenance import current_id
 from .store import ResultStore
 
 MARGINS = ("M_f", "M_r", "M_e", "M_fl", "M_fr", "M_rl", "M_rr")
@@ -159,6 +160,7 @@ def run_case(planner: str, sc: Scenario | Layout) -> dict[str, Any]:
     ended = None if row.get("planner_status") == "error" else info
     row["failure_cause"], row["failure_amount"] = episode_cause(ended, feasible)
     row["episode_wall_s"] = time.perf_counter() - t0
+    row["environment"] = current_id()  # the machine and packages (``environment.jsonl``)
     return row
 
 
@@ -187,6 +189,8 @@ def evaluate(
     store = ResultStore(out)
     done = store.done()
     todo = [sc for sc in unique(scenarios)[0] if (planner, sc.case_id) not in done]
+    if todo:
+        store.record_environment(planner, len(todo))
     bar = progress_bar(len(todo), f"{planner}", progress, initial=0)
     stored = 0
 

@@ -28,6 +28,7 @@ from typing import Any
 import pandas as pd
 
 KEY = ["planner", "case_id"]
+ENVIRONMENTS_KEY = b"mirrorpark.environments"  # an exported table's metadata: where it ran
 # Types a journal row must have where it has the field (None stands for NaN).
 _NUMBER = (int, float)
 _FIELD_TYPES: dict[str, tuple[type, ...]] = {
@@ -46,6 +47,7 @@ _FIELD_TYPES: dict[str, tuple[type, ...]] = {
     "episode_wall_s": _NUMBER,
     "parking_type": (str,),
     "failed_criterion": (str,),
+    "environment": (str,),
 }
 
 
@@ -88,10 +90,32 @@ class ResultStore:
         self.rejected = self.folder / "journal.rejected.jsonl"
         self.parts = self.folder / "parts"
         self.parquet = self.folder / "results.parquet"
+        self.environment_log = self.folder / "environment.jsonl"
         self.part_rows = part_rows
         for tmp in self.parts.glob(".part-*.tmp") if writable and self.parts.exists() else ():
             tmp.unlink(missing_ok=True)  # a part cut short by an interruption: its rows are in the journal
         self._pending = len(self._rows()[0])
+
+    def record_environment(self, planner: str, cases: int) -> None:
+        """Note what the run about to start runs on (``provenance.environment``): one line per run."""
+        from .provenance import environment, environment_id
+
+        env = environment()
+        line = {"id": environment_id(env), "planner": planner, "cases": cases, **env}
+        with self.environment_log.open("a") as f:
+            f.write(json.dumps(line) + "\n")
+
+    def environments(self) -> list[dict[str, Any]]:
+        """The runs' environments, oldest first (lines that do not parse are skipped)."""
+        if not self.environment_log.exists():
+            return []
+        out = []
+        for line in self.environment_log.read_text().splitlines():
+            try:
+                out.append(json.loads(line))
+            except json.JSONDecodeError:
+                continue
+        return out
 
     def done(self) -> set[tuple[str, str]]:
         """(planner, case_id) pairs with a recorded row (errors included)."""
@@ -264,14 +288,22 @@ EXPORT_COLUMNS = (
     "plan_times_ms", "plan_iterations", "plan_qp_solves", "plan_nodes",
     "safety_net_calls", "setup_ms", "planner_status", "error", "inside_slot", "min_clearance_m",
     "speed_at_min_clearance", "min_clearance_away_m", "speed_at_min_clearance_away", "episode_wall_s",
-    "M_f", "M_r", "M_e", "M_fl", "M_fr", "M_rl", "M_rr",
+    "M_f", "M_r", "M_e", "M_fl", "M_fr", "M_rl", "M_rr", "environment",
 )  # fmt: skip
 
 
-def export_table(df: pd.DataFrame, folder: str | Path, planner: str, chunk: str | None = None) -> Path:
+def export_table(
+    df: pd.DataFrame,
+    folder: str | Path,
+    planner: str,
+    chunk: str | None = None,
+    environments: list[dict[str, Any]] | None = None,
+) -> Path:
     """``df``'s rows in the report's columns, sorted by case, to ``folder/<planner>[-chunkK-of-N].parquet``
     (zstd; replaced whole, atomically). ``mirrorpark report`` reads such files directly.
-    Per-call medians and maxima, steps and y1 are left out: they follow from what is kept."""
+    Per-call medians and maxima, steps and y1 are left out: they follow from what is kept.
+    Of ``environments`` (``ResultStore.environments``), those the rows name go into the
+    file's metadata under ``mirrorpark.environments`` (``environments_of`` reads them)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     name = planner.replace(":", "_").replace("/", "_")
@@ -288,7 +320,29 @@ def export_table(df: pd.DataFrame, folder: str | Path, planner: str, chunk: str 
             out[c] = out[c].round(1 if c.endswith("_ms") else 2 if c.endswith("_s") else 4 if c in fine else 3)
     if "plan_times_ms" in out:
         out["plan_times_ms"] = [None if t is None else [round(float(v), 1) for v in t] for t in out["plan_times_ms"]]
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pa.Table.from_pandas(out, preserve_index=False)
+    named = set(out["environment"].dropna()) if "environment" in out else set()
+    envs, seen = [], set()
+    for e in environments or []:  # the first run in each environment that the rows name
+        if e.get("id") in named and e["id"] not in seen:
+            seen.add(e["id"])
+            envs.append(e)
+    if envs:
+        meta = dict(table.schema.metadata or {})
+        meta[ENVIRONMENTS_KEY] = json.dumps(envs).encode()
+        table = table.replace_schema_metadata(meta)
     tmp = folder / f".{name}.{secrets.token_hex(4)}.tmp"
-    out.to_parquet(tmp, index=False, compression="zstd", compression_level=19)
+    pq.write_table(table, tmp, compression="zstd", compression_level=19)
     os.replace(tmp, folder / f"{name}.parquet")
     return folder / f"{name}.parquet"
+
+
+def environments_of(path: str | Path) -> list[dict[str, Any]]:
+    """The environments an exported table was run in (empty where none were recorded)."""
+    import pyarrow.parquet as pq
+
+    raw = (pq.read_schema(path).metadata or {}).get(ENVIRONMENTS_KEY)
+    return json.loads(raw) if raw else []

@@ -147,6 +147,26 @@ def test_resume_after_interruption_repeats_and_loses_nothing(tmp_path, stub_plan
     assert (tmp_path / "results.parquet").exists()
 
 
+def test_rows_name_the_machine_and_packages_they_ran_with(tmp_path, stub_planners):
+    """Each run notes its environment once in the results folder; each row names it; an
+    exported table carries the environments its rows name; a run with nothing to do adds
+    no line."""
+    from evaluation.store import environments_of, export_table
+
+    evaluate("instant", _scenarios(A, B), tmp_path / "r", workers=1, progress=False)
+    evaluate("instant", _scenarios(A, B), tmp_path / "r", workers=1, progress=False)  # nothing to do
+    store = ResultStore(tmp_path / "r")
+    envs = store.environments()
+    assert len(envs) == 1 and envs[0]["cases"] == 2 and envs[0]["planner"] == "instant"
+    assert envs[0]["packages"]["numpy"] == np.__version__ and envs[0]["python"] and envs[0]["cpu"]
+    df = store.table()
+    assert set(df["environment"]) == {envs[0]["id"]}
+    stranger = {**envs[0], "id": "not-in-rows", "cpu": "another"}
+    path = export_table(df, tmp_path / "x", "instant", environments=[*envs, stranger, envs[0]])
+    assert environments_of(path) == envs
+    assert set(pd.read_parquet(path)["environment"]) == {envs[0]["id"]}
+
+
 def test_a_case_that_raises_is_an_error_row(tmp_path, stub_planners):
     from mirrorpark_env import Scenario
 

@@ -126,7 +126,7 @@ def test_types_filter_applies_to_case_files(tmp_path, quick):
 # ------------------------------------------------- 3, 4. the store never destroys
 def test_a_folder_holding_only_results_parquet_is_resumed_not_overwritten(tmp_path, quick):
     evaluate("quick", [Scenario.from_case_id(A)], tmp_path, workers=1, progress=False)
-    for p in [tmp_path / "journal.jsonl", *tmp_path.glob("parts/*")]:  # as a folder copied without them
+    for p in [tmp_path / "journal.jsonl", tmp_path / "environment.jsonl", *tmp_path.glob("parts/*")]:  # copied without
         p.unlink(missing_ok=True)
     assert [p.name for p in tmp_path.iterdir() if p.is_file()] == ["results.parquet"]
     before = pd.read_parquet(tmp_path / "results.parquet")
