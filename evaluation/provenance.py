@@ -54,6 +54,15 @@ def _numpy_simd() -> list[str]:
     return [f for f in __cpu_dispatch__ if __cpu_features__.get(f)]
 
 
+def _piqp_build() -> str | None:
+    """The piqp extension the mirror planners solve with (its builds round differently)."""
+    try:
+        from planners.mirror.solvers import PIQP
+    except ImportError:
+        return None
+    return PIQP.__name__
+
+
 def _version(name: str) -> str | None:
     try:
         return metadata.version(name)
@@ -69,6 +78,7 @@ def environment() -> dict[str, Any]:
         "system": f"{platform.system()} {platform.machine()}",
         "cpu": _cpu_model(),
         "numpy_simd": _numpy_simd(),
+        "piqp_build": _piqp_build(),
         "packages": {name: _version(name) for name in PACKAGES},
     }
 

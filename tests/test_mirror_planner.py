@@ -153,6 +153,24 @@ def _boxes_problem():
     return qp, disj, np.array(bounds, float)
 
 
+def test_piqp_runs_its_avx2_build_wherever_the_cpu_has_avx2(monkeypatch):
+    """Not its AVX-512 build (piqp's own choice on such CPUs: it rounds differently, so rows
+    would differ by machine); its generic build only where there is no AVX2."""
+    import piqp.instruction_set as cpu
+
+    from planners.mirror import solvers
+
+    has_avx2 = bool(cpu.avx2)
+    assert solvers.PIQP.__name__ == ("piqp.piqp_python_avx2" if has_avx2 else "piqp.piqp_python")
+    assert isinstance(solvers.PiqpQP()._new_solver(4), solvers.PIQP.SparseSolver)
+    monkeypatch.setattr(cpu, "avx512f", True)
+    monkeypatch.setattr(cpu, "avx2", False)
+    assert solvers._piqp_build().__name__ == "piqp.piqp_python"
+    if has_avx2:  # the AVX2 build only loads where the CPU can run it
+        monkeypatch.setattr(cpu, "avx2", True)
+        assert solvers._piqp_build().__name__ == "piqp.piqp_python_avx2"
+
+
 def test_branch_and_bound_matches_exhaustive_enumeration():
     qp, disj, bounds = _boxes_problem()
     bb = BranchAndBound(PiqpQP(), node_limit=10_000, time_limit_s=30).solve(qp, disj, bounds)

@@ -29,6 +29,23 @@ import scipy.sparse as sp
 INACTIVE = -1e6  # lower bound of a row that is switched off
 
 
+def _piqp_build():
+    """piqp's extension built for AVX2 where the CPU has it, else its generic one.
+
+    piqp itself picks its AVX-512 build on CPUs that have AVX-512. Each build rounds
+    differently, and a QP's last bits decide some plans: the same case then gives another
+    row on such a machine (docs/evaluation.md). So every x86-64 CPU with AVX2, AVX-512
+    ones included, runs the one build that today's reruns of the committed grid agree with."""
+    import importlib
+
+    from piqp import instruction_set
+
+    return importlib.import_module("piqp.piqp_python_avx2" if instruction_set.avx2 else "piqp.piqp_python")
+
+
+PIQP = _piqp_build()
+
+
 @dataclass(eq=False)
 class QP:
     P: sp.csc_matrix
@@ -141,7 +158,7 @@ class PiqpQP:
         self.updates = 0
 
     def _new_solver(self, g_rows: int) -> piqp.SparseSolver:
-        s = piqp.SparseSolver()
+        s = PIQP.SparseSolver()
         s.settings.eps_abs = self.eps_abs
         s.settings.eps_rel = self.eps_rel
         s.settings.max_iter = self.max_iter
@@ -151,7 +168,7 @@ class PiqpQP:
         kkt = self.kkt_solver
         if kkt == "auto":
             kkt = "sparse_multistage" if g_rows <= self.MULTISTAGE_MAX_ROWS else "sparse_ldlt"
-        s.settings.kkt_solver = getattr(piqp, kkt)
+        s.settings.kkt_solver = getattr(PIQP, kkt)
         return s
 
     def solve(self, qp: QP) -> QPResult:
@@ -240,6 +257,11 @@ class BranchAndBound:
             solves += 1
             if res.x is not None:
                 best_x, best_obj, best_assign = res.x, res.obj, tuple(preferred)
+        # Each disjunction's rows, end to end: a node's best alternative per disjunction is
+        # one reduction over them.
+        alt_rows = np.array([r for d in disjunctions for r in d.rows], np.int64)
+        firsts = np.cumsum([0] + [len(d.rows) for d in disjunctions[:-1]])
+        pref = set(preferred or ())
         stack: list[tuple[int, ...]] = [tuple([-1] * len(disjunctions))]
         while stack:
             if nodes >= self.node_limit:
@@ -250,27 +272,24 @@ class BranchAndBound:
                 break
             assign = stack.pop()
             nodes += 1
+            fixed = np.array(assign, np.int64)
+            fixed = fixed[fixed >= 0]
             h_l = base_l.copy()
-            for r in assign:
-                if r >= 0:
-                    h_l[r] = active_bounds[r]
+            h_l[fixed] = active_bounds[fixed]
             qp.h_l = h_l
             res = self.qp_backend.solve(qp)
             solves += 1
             if res.x is None or res.obj >= best_obj - 1e-9:
                 continue  # infeasible or bounded out
             slack = qp.G @ res.x - active_bounds
-            worst, worst_j = 0.0, -1
-            for j, d in enumerate(disjunctions):
-                if assign[j] >= 0:
-                    continue
-                best_alt = max(slack[r] for r in d.rows)
-                if best_alt < -self.tol and best_alt < worst:
-                    worst, worst_j = best_alt, j
-            if worst_j < 0:  # every disjunction holds: a feasible leaf
+            # The most violated open disjunction (its best alternative below -tol; the
+            # first of equals), or none: a feasible leaf.
+            best_alt = np.maximum.reduceat(slack[alt_rows], firsts) if disjunctions else np.zeros(0)
+            open_ = (np.array(assign, np.int64) < 0) & (best_alt < -self.tol)
+            if not open_.any():
                 best_x, best_obj, best_assign = res.x, res.obj, assign
                 continue
-            pref = set(preferred or ())
+            worst_j = int(np.argmin(np.where(open_, best_alt, np.inf)))
             rows = sorted(disjunctions[worst_j].rows, key=lambda r: (r in pref, slack[r]))  # best popped first
             for r in rows:
                 child = list(assign)
