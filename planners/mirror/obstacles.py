@@ -103,13 +103,14 @@ class ObstacleRows:
     def add(self, rows: Rows, cand: Candidate, ref_real: np.ndarray, theta_set) -> None:
         """Rows at the (step, obstacle) pairs in ``theta_set``, linearised about ``ref_real``.
 
-        Per pair, in sorted order: each feature point that is within 1 m of the obstacle's
-        faces, behind one of them (a row per face: a disjunction, or a plain row where the
-        obstacle has one useful face); then each obstacle vertex within reach of the car,
-        behind one of the car's four faces. The preferred alternative of a disjunction is
-        the one the reference satisfies best. Computed for all pairs at once; each value keeps
-        the order of operations of the formula for one point and one face, so that the QPs
-        (and every committed result) stay the same to the last bit."""
+        Per pair, in sorted order: each feature point less than 1 m outside every face of
+        the obstacle (one farther out cannot reach it here), behind one of them (a row per
+        face: a disjunction, or a plain row where the obstacle has one useful face); then
+        each obstacle vertex within reach of the car, behind one of the car's four faces.
+        The preferred alternative of a disjunction is the one the reference satisfies best.
+        Computed for all pairs at once; each value keeps the order of operations of the
+        formula for one point and one face, so that the QPs (and every committed result)
+        stay the same to the last bit."""
         pairs = sorted(theta_set)
         if not pairs:
             return

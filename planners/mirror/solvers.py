@@ -35,7 +35,8 @@ def _piqp_build():
     piqp itself picks its AVX-512 build on CPUs that have AVX-512. Each build rounds
     differently, and a QP's last bits decide some plans: the same case then gives another
     row on such a machine (docs/evaluation.md). So every x86-64 CPU with AVX2, AVX-512
-    ones included, runs the one build that today's reruns of the committed grid agree with."""
+    ones included, runs one build: the AVX2 one, which reproduced the committed grid rows
+    checked on 2026-12-03 (all but 8 of 1,500, which another build most likely made)."""
     import importlib
 
     from piqp import instruction_set
