@@ -25,14 +25,9 @@ from .solvers import INACTIVE, Disjunction
 
 @dataclass
 class Rows:
-    """Inequality rows h_l <= G z <= h_u as triplets, with the disjunctions among them.
+    """Inequality rows h_l <= G z <= h_u, their G as blocks of (row, column, value)
+    triplets, with the disjunctions among them."""
 
-    Triplets come as lists (a few rows) and as array blocks (``extend``); ``triplets``
-    joins them."""
-
-    g_rows: list[int] = field(default_factory=list)
-    g_cols: list[int] = field(default_factory=list)
-    g_vals: list[float] = field(default_factory=list)
     h_l: list[float] = field(default_factory=list)
     h_u: list[float] = field(default_factory=list)
     active: list[float] = field(default_factory=list)  # each row's lower bound when it is enforced
@@ -45,10 +40,9 @@ class Rows:
         self.blocks.append((g_rows, g_cols, g_vals))
 
     def triplets(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(rows, cols, values) of every triplet."""
-        parts = [(np.asarray(self.g_rows, np.int64), np.asarray(self.g_cols, np.int64), np.asarray(self.g_vals, float))]
-        parts += self.blocks
-        return tuple(np.concatenate([p[j] for p in parts]) for j in range(3))
+        """(rows, cols, values) of every triplet, block after block."""
+        empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+        return tuple(np.concatenate([p[j] for p in [empty, *self.blocks]]) for j in range(3))
 
 
 class ObstacleRows:

@@ -123,21 +123,21 @@ class MirrorQP:
         heading at step s. Else row 0 puts S on the fixed line (parallel, to 2 cm) or
         beyond it (reverse, angle) where ``on``; unused rows are inactive."""
         th = ix(s if s is not None else 0, XI_TH)
-        for r in range(2):
-            rows.g_rows += [r, r, r]
-            rows.g_cols += [self.iS, self.iS + 1, th]
+        g_rows, g_cols = np.repeat([0, 1], 3), np.array([self.iS, self.iS + 1, th] * 2)
         if band is not None:
+            vals = []
             for r in range(2):
                 if r < len(band.lo):
-                    rows.g_vals += [*band.a_s[r], band.a_theta[r]]
+                    vals += [*band.a_s[r], band.a_theta[r]]
                     rows.h_l.append(band.lo[r]), rows.h_u.append(np.inf)
                 else:
-                    rows.g_vals += [0.0, 0.0, 0.0]
+                    vals += [0.0, 0.0, 0.0]
                     rows.h_l.append(INACTIVE), rows.h_u.append(np.inf)
                 rows.active.append(rows.h_l[-1])
+            rows.extend(g_rows, g_cols, np.array(vals, float))
             return
         n0, n1 = ln.normal
-        rows.g_vals += [n0, n1, 0.0, 0.0, 0.0, 0.0]
+        rows.extend(g_rows, g_cols, np.array([n0, n1, 0.0, 0.0, 0.0, 0.0], float))
         bound = n0 * ln.target_xy[0] + n1 * ln.target_xy[1] + ln.distance
         if not on:
             rows.h_l.append(INACTIVE), rows.h_u.append(np.inf)

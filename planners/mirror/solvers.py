@@ -273,8 +273,8 @@ class BranchAndBound:
                 break
             assign = stack.pop()
             nodes += 1
-            fixed = np.array(assign, np.int64)
-            fixed = fixed[fixed >= 0]
+            chosen = np.array(assign, np.int64)  # per disjunction its row, or -1: open
+            fixed = chosen[chosen >= 0]
             h_l = base_l.copy()
             h_l[fixed] = active_bounds[fixed]
             qp.h_l = h_l
@@ -286,7 +286,7 @@ class BranchAndBound:
             # The most violated open disjunction (its best alternative below -tol; the
             # first of equals), or none: a feasible leaf.
             best_alt = np.maximum.reduceat(slack[alt_rows], firsts) if disjunctions else np.zeros(0)
-            open_ = (np.array(assign, np.int64) < 0) & (best_alt < -self.tol)
+            open_ = (chosen < 0) & (best_alt < -self.tol)
             if not open_.any():
                 best_x, best_obj, best_assign = res.x, res.obj, assign
                 continue
