@@ -123,12 +123,11 @@ class ObstacleRows:
         cx, cy = self.points[None, :, 0, None], self.points[None, :, 1, None]
         rc0, rc1 = ct * cx - st * cy, st * cx + ct * cy  # R(th) c
         drc0, drc1 = -st * cx - ct * cy, ct * cx - st * cy  # dR/dth c
-        slack_p = f0 * (px + rc0) + f1 * (py + rc1) - off
-        slack_p = np.where(self._fvalid[obs][:, None, :], slack_p, -np.inf)
-        near_p = self._fvalid[obs][:, None, :] & (slack_p.max(axis=2) <= 1.0)[:, :, None]
+        valid = self._fvalid[obs][:, None, :]  # real faces, not padding
+        slack_p = np.where(valid, f0 * (px + rc0) + f1 * (py + rc1) - off, -np.inf)
+        near_p = valid & (slack_p.max(axis=2) <= 1.0)[:, :, None]
         coef_p = f0 * drc0 + f1 * drc1
         lower_p = off + self.margin - (f0 * (rc0 - th * drc0) + f1 * (rc1 - th * drc1))
-        n0_p, n1_p = np.broadcast_to(f0, slack_p.shape), np.broadcast_to(f1, slack_p.shape)
 
         # Obstacle vertices (axis 1) behind the car's faces (axis 2).
         q0, q1 = self._v0[obs][:, :, None], self._v1[obs][:, :, None]
@@ -149,14 +148,13 @@ class ObstacleRows:
             return np.concatenate([a_p.reshape(n, -1), a_v.reshape(n, -1)], axis=1).reshape(-1)
 
         keep = flat(near_p, near_v)
-        n_alt = flat(np.broadcast_to(self._nfaces[obs][:, None, None], slack_p.shape), np.full(slack_v.shape, 4))
+        n_alt = flat(self._nfaces[obs][:, None, None], 4)
         group = np.cumsum(flat(np.arange(slack_p.shape[2]) == 0, np.arange(4) == 0)) - 1
         pair = np.repeat(np.arange(len(pairs)), slack_p[0].size + slack_v[0].size)
         keep_i = np.flatnonzero(keep)
         k_group, k_pair, k_alts = group[keep_i], pair[keep_i], n_alt[keep_i]
         lower, slack = flat(lower_p, lower_v)[keep_i], flat(slack_p, slack_v)[keep_i]
-        c0 = flat(n0_p, -nw0)[keep_i]
-        c1 = flat(n1_p, -nw1)[keep_i]
+        c0, c1 = flat(f0, -nw0)[keep_i], flat(f1, -nw1)[keep_i]
         c_th = flat(coef_p, coef_v)[keep_i]
 
         r0, n_rows = len(rows.h_u), len(keep_i)
