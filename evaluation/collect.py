@@ -29,7 +29,7 @@ import numpy as np
 
 from mirrorpark_env.scenario import Scenario
 
-from .runner import progress_bar, run_parallel, unique, worker_env
+from .runner import progress_bar, run_parallel, slot_of, unique, worker_env
 
 INFO_KEYS = ("is_success", "collision", "min_margin", "heading_error_deg")
 
@@ -109,7 +109,7 @@ def collect(
                 _record_to_file(item)
                 bar.update(1)
         else:
-            run_parallel(_record_to_file, items, lambda _: bar.update(1), workers)
+            run_parallel(_record_to_file, items, lambda _: bar.update(1), workers, group=lambda it: slot_of(it[1]))
     except KeyboardInterrupt:
         done = len(list(episodes.glob("*.npz")))
         raise KeyboardInterrupt(f"{done} episodes stored in {episodes}; rerun the same command to resume") from None

@@ -207,7 +207,7 @@ def evaluate(
             for sc in todo:
                 keep(run_case(planner, sc))
         else:
-            run_parallel(_run_case_tuple, [(planner, sc) for sc in todo], keep, workers)
+            run_parallel(_run_case_tuple, [(planner, sc) for sc in todo], keep, workers, group=lambda it: slot_of(it[1]))
     except KeyboardInterrupt:
         bar.close()
         store.compact()
@@ -228,14 +228,50 @@ def _ignore_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def run_parallel(fn, items: list, keep, workers: int) -> None:
-    """``keep(fn(item))`` for every item, in ``workers`` processes, in the order they finish.
+def run_parallel(fn, items: list, keep, workers: int, group=None, batch: int = 8) -> None:
+    """``keep(fn(item))`` for every item, in ``workers`` processes, as they finish.
+
     ``fn`` must be a module-level function (it is pickled for the workers); no more workers
-    start than there are items."""
+    start than there are items. ``group(item)`` (optional) names what items may share: items
+    of one group, in the order given, go to one worker in runs of up to ``batch``, so that
+    what a planner builds once per slot (``planners.common.slot_cache``) is built once per
+    run, not once per worker that meets the slot. Results do not change, only the work.
+    """
+    runs = batches(items, group, batch)
     ctx, extra = _pool_context()
-    with ctx.Pool(min(workers, len(items)), initializer=_init_worker, initargs=(extra,), maxtasksperchild=200) as pool:
-        for out in pool.imap_unordered(fn, items, chunksize=1):
-            keep(out)
+    tasks = [(fn, run) for run in runs]
+    with ctx.Pool(min(workers, len(runs)), initializer=_init_worker, initargs=(extra,), maxtasksperchild=200) as pool:
+        for outs in pool.imap_unordered(_run_batch, tasks, chunksize=1):
+            for out in outs:
+                keep(out)
+
+
+def batches(items: list, group=None, batch: int = 8) -> list[list]:
+    """``items`` in order, cut into runs of one group each (``group(item)``; None: one run
+    per item), none longer than ``batch``."""
+    if batch < 1:
+        raise ValueError(f"batch: must be >= 1, got {batch}")
+    if group is None:
+        return [[item] for item in items]
+    runs: list[list] = []
+    last = object()
+    for item in items:
+        key = group(item)
+        if not runs or key != last or len(runs[-1]) >= batch:
+            runs.append([])
+        runs[-1].append(item)
+        last = key
+    return runs
+
+
+def _run_batch(task: tuple) -> list:
+    fn, items = task
+    return [fn(item) for item in items]
+
+
+def slot_of(sc: Scenario) -> tuple:
+    """What a scenario's slot geometry depends on (its start does not)."""
+    return (sc.parking_type, sc.road_width, sc.slot_length, sc.slot_width)
 
 
 def _pool_context():

@@ -5,12 +5,13 @@ from __future__ import annotations
 import os
 import signal
 import threading
+import time
 
 import numpy as np
 import pytest
 
 from evaluation import registry
-from evaluation.runner import _pool_context, evaluate
+from evaluation.runner import _pool_context, batches, evaluate, run_parallel
 from evaluation.store import read_results
 from mirrorpark_env import Scenario
 from planners.base import Policy
@@ -65,3 +66,27 @@ def test_a_lock_held_by_another_thread_does_not_hang_the_workers(tmp_path, monke
         t.join()
     df = read_results([tmp_path])
     assert sorted(df["case_id"]) == sorted(CASES) and df["error"].isna().all()
+
+
+def test_batches_keep_order_and_cut_at_each_new_group_and_at_the_batch_size():
+    items = ["a1", "a2", "a3", "b1", "a4", "c1", "c2"]
+    assert batches(items, lambda it: it[0], batch=2) == [["a1", "a2"], ["a3"], ["b1"], ["a4"], ["c1", "c2"]]
+    assert batches(items) == [[it] for it in items]
+    with pytest.raises(ValueError, match="batch: must be >= 1"):
+        batches(items, lambda it: it[0], batch=0)
+
+
+def _pid_after_a_while(item):
+    time.sleep(0.05)  # long enough that both workers take items
+    return item, os.getpid()
+
+
+def test_a_groups_items_run_in_one_worker_and_each_runs_once():
+    """What a planner builds once per slot is then built once, not once per worker."""
+    items = [(g, k) for g in range(6) for k in range(3)]
+    got = []
+    run_parallel(_pid_after_a_while, items, got.append, workers=2, group=lambda it: it[0], batch=3)
+    assert sorted(item for item, _ in got) == items
+    pid = dict(got)
+    assert all(pid[(g, 0)] == pid[(g, 1)] == pid[(g, 2)] for g in range(6))
+    assert len(set(pid.values())) == 2
