@@ -207,7 +207,8 @@ def evaluate(
             for sc in todo:
                 keep(run_case(planner, sc))
         else:
-            run_parallel(_run_case_tuple, [(planner, sc) for sc in todo], keep, workers, group=lambda it: slot_of(it[1]))
+            items = [(planner, sc) for sc in todo]
+            run_parallel(_run_case_tuple, items, keep, workers, group=lambda it: slot_of(it[1]))
     except KeyboardInterrupt:
         bar.close()
         store.compact()
