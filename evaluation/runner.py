@@ -326,7 +326,7 @@ def _run_ray(planner: str, todo: list[Scenario], keep, address: str | None, work
             ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
         else:
             ray.init(num_cpus=workers, ignore_reinit_error=True, log_to_driver=False, include_dashboard=False)
-    task = ray.remote(num_cpus=1)(_run_batch)
+    task = ray.remote(num_cpus=1)(run_case)
     limit = 4 * max(1, int(ray.available_resources().get("CPU", workers)))
     pending = []
 
@@ -334,12 +334,10 @@ def _run_ray(planner: str, todo: list[Scenario], keep, address: str | None, work
         nonlocal pending
         ready, pending = ray.wait(pending, num_returns=1)
         for ref in ready:
-            for row in ray.get(ref):
-                keep(row)
+            keep(ray.get(ref))
 
-    # a few tasks in flight per CPU, one new per finished one; a slot's cases together (run_parallel)
-    for run in batches([(planner, sc) for sc in todo], lambda it: slot_of(it[1])):
-        pending.append(task.remote((_run_case_tuple, run)))
+    for sc in todo:  # a few tasks in flight per CPU; one new task per finished one
+        pending.append(task.remote(planner, sc))
         if len(pending) >= limit:
             collect()
     while pending:
