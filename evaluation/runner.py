@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import queue
 import time
 import traceback
 from collections.abc import Iterable
@@ -230,21 +231,37 @@ def _ignore_sigint() -> None:
 
 
 def run_parallel(fn, items: list, keep, workers: int, group=None, batch: int = 8) -> None:
-    """``keep(fn(item))`` for every item, in ``workers`` processes, as they finish.
+    """``keep(fn(item))`` for every item, in ``workers`` processes, as each finishes.
 
     ``fn`` must be a module-level function (it is pickled for the workers); no more workers
     start than there are items. ``group(item)`` (optional) names what items may share: items
     of one group, in the order given, go to one worker in runs of up to ``batch``, so that
     what a planner builds once per slot (``planners.common.slot_cache``) is built once per
-    run, not once per worker that meets the slot. Results do not change, only the work.
+    run, not once in every worker that meets the slot. Results do not change, only the
+    work. Each item's result comes back as soon as it is done, not with its run: an
+    interruption loses only the items in progress.
     """
     runs = batches(items, group, batch)
+    if not runs:
+        return
     ctx, extra = _pool_context()
-    tasks = [(fn, run) for run in runs]
-    with ctx.Pool(min(workers, len(runs)), initializer=_init_worker, initargs=(extra,), maxtasksperchild=200) as pool:
-        for outs in pool.imap_unordered(_run_batch, tasks, chunksize=1):
-            for out in outs:
-                keep(out)
+    results = ctx.Queue()
+    n_proc = min(workers, len(runs))
+    with ctx.Pool(n_proc, initializer=_init_worker, initargs=(extra, results), maxtasksperchild=200) as pool:
+        pending = pool.map_async(_run_batch, [(fn, run) for run in runs], chunksize=1)
+        left = len(items)
+        while left:
+            try:
+                ok, out = results.get(timeout=1.0 if not pending.ready() else 30.0)
+            except queue.Empty:
+                if not pending.ready():
+                    continue
+                pending.get()  # a run that failed outside ``fn`` raises here
+                raise RuntimeError(f"run_parallel: {left} of {len(items)} items gave no result") from None
+            if not ok:
+                raise out
+            keep(out)
+            left -= 1
 
 
 def batches(items: list, group=None, batch: int = 8) -> list[list]:
@@ -265,9 +282,16 @@ def batches(items: list, group=None, batch: int = 8) -> list[list]:
     return runs
 
 
-def _run_batch(task: tuple) -> list:
+def _run_batch(task: tuple) -> None:
+    """Run items one after another in this worker, each result sent on as it is done."""
     fn, items = task
-    return [fn(item) for item in items]
+    for item in items:
+        try:
+            out = fn(item)
+        except Exception as err:
+            _RESULTS.put((False, err))
+            raise
+        _RESULTS.put((True, out))
 
 
 def slot_of(sc: Scenario) -> tuple:
@@ -308,12 +332,18 @@ def _native_threads() -> int:
         return threading.active_count()
 
 
-def _init_worker(extra: dict) -> None:
-    """Workers leave Ctrl-C to the parent, and know the planners registered at run time."""
+_RESULTS = None  # a worker's queue to the parent (``run_parallel``)
+
+
+def _init_worker(extra: dict, results=None) -> None:
+    """Workers leave Ctrl-C to the parent, know the planners registered at run time, and
+    send their results on ``results``."""
+    global _RESULTS
     from . import registry
 
     _ignore_sigint()
     registry.PLANNERS.update(extra)
+    _RESULTS = results
 
 
 def _run_ray(planner: str, todo: list[Scenario], keep, address: str | None, workers: int) -> None:

@@ -90,3 +90,42 @@ def test_a_groups_items_run_in_one_worker_and_each_runs_once():
     pid = dict(got)
     assert all(pid[(g, 0)] == pid[(g, 1)] == pid[(g, 2)] for g in range(6))
     assert len(set(pid.values())) == 2
+
+
+def _waits_for_the_parent(item):
+    """Item k > 0 waits (10 s at most) until the parent has kept item k - 1."""
+    k, folder = item
+    if k == 0:
+        return k, True
+    flag = os.path.join(folder, f"kept{k - 1}")
+    for _ in range(200):
+        if os.path.exists(flag):
+            return k, True
+        time.sleep(0.05)
+    return k, False
+
+
+def test_each_result_reaches_the_parent_before_its_run_ends(tmp_path):
+    """So an interruption loses only the items in progress, not a run's finished ones."""
+    items = [(k, str(tmp_path)) for k in range(3)]
+    got = []
+
+    def keep(out):
+        got.append(out)
+        (tmp_path / f"kept{out[0]}").touch()
+
+    run_parallel(_waits_for_the_parent, items, keep, workers=2, group=lambda it: "one slot", batch=3)
+    assert got == [(0, True), (1, True), (2, True)]
+
+
+def _fails_on_one(item):
+    if item == 1:
+        raise ValueError("item 1 is bad")
+    return item
+
+
+def test_an_items_failure_reaches_the_parent_as_itself():
+    kept = []
+    with pytest.raises(ValueError, match="item 1 is bad"):
+        run_parallel(_fails_on_one, [0, 1, 2, 3], kept.append, workers=2, group=lambda it: it // 2, batch=2)
+    assert 0 in kept and 1 not in kept
