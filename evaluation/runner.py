@@ -11,7 +11,7 @@ import os
 import queue
 import time
 import traceback
-from collections.abc import Iterable
+from collections.abc import Callable, Hashable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -230,7 +230,14 @@ def _ignore_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def run_parallel(fn, items: list, keep, workers: int, group=None, batch: int = 8) -> None:
+def run_parallel(
+    fn: Callable[[Any], Any],
+    items: list,
+    keep: Callable[[Any], None],
+    workers: int,
+    group: Callable[[Any], Hashable] | None = None,
+    batch: int = 8,
+) -> None:
     """``keep(fn(item))`` for every item, in ``workers`` processes, as each finishes.
 
     ``fn`` must be a module-level function (it is pickled for the workers); no more workers
@@ -264,7 +271,7 @@ def run_parallel(fn, items: list, keep, workers: int, group=None, batch: int = 8
             left -= 1
 
 
-def batches(items: list, group=None, batch: int = 8) -> list[list]:
+def batches(items: list, group: Callable[[Any], Hashable] | None = None, batch: int = 8) -> list[list]:
     """``items`` in order, cut into runs of one group each (``group(item)``; None: one run
     per item), none longer than ``batch``."""
     if batch < 1:
