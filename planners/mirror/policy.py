@@ -75,6 +75,7 @@ class MirrorPolicy(Policy):
         self._stood: list[np.ndarray | None] = []  # the last two calls' standing states
         self._best = {"guide_cost": math.inf, "stay_cost": math.inf}
         self._since_best = 0
+        self._stuck = 0  # partial plans in a row that only turn the wheels of a standing car
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         if self.planner is None:
@@ -152,7 +153,16 @@ class MirrorPolicy(Policy):
             self._best[key], self._since_best = measure, 0
         else:
             self._since_best += 1
-        if len(self.stats) >= self.max_plans or self._since_best >= self.patience:
+        # A partial plan that moves a standing car less than ``IDLE_TRAVEL`` is a safe stop
+        # where it stands: no way on was found, and it only turns the wheels. Once may help
+        # (the steering is part of the state); twice in a row, the second from the wheels the
+        # first set, the calls that follow return the same (measured: 6 such calls of up to
+        # 790 QPs each until ``patience``, in 8 of 500 standard episodes, a quarter of all
+        # their planning time).
+        travel = float(np.abs(plan.states[:, 3]).sum()) * self.config.dt
+        still = here is not None and plan.stats.status == "partial" and travel < IDLE_TRAVEL
+        self._stuck = self._stuck + 1 if still else 0
+        if len(self.stats) >= self.max_plans or self._since_best >= self.patience or self._stuck >= 2:
             self.gave_up = True  # no progress: stop safely rather than shuffle for 180 s
             # The car finishes its verified plan, if any is left, which ends standing with its
             # brake checked. Braking where it is, wheels held, leaves the checked path: with
