@@ -568,25 +568,30 @@ def test_a_planner_failing_twice_where_the_car_stands_gives_up(monkeypatch):
     assert [s.status for s in policy.stats] == ["infeasible", "infeasible"]
 
 
+def _standing_plan(planner, state, status: str, delta: float, stay_cost: float):
+    """A plan that keeps the car where it stands, steering to ``delta``, with ``status``."""
+    from planners.base import PlanStats
+    from planners.mirror.plans import Plan
+
+    xi = np.repeat(state.as_array()[None, :6], 4, axis=0)
+    xi[:, 3:5] = 0.0
+    xi[1:, 5] = delta
+    stats = PlanStats(0.001, status, detail={"stay_cost": stay_cost})
+    planner.last_stats = stats
+    cmds = np.array([[0.0, delta]] * 3)
+    return Plan(cmds, xi, Candidate(1, None), None, planner.line, xi, 1.0, (0.0, 0.0), True, stats)
+
+
 def test_partial_plans_that_only_turn_the_wheels_end_the_episode_at_the_second(monkeypatch):
     """A partial plan that does not move a standing car is a safe stop where it stands. Its
     turned wheels make the next call start from another state, so the standing-state rule
     does not stop the calls (they went on to ``patience``, 6 calls); two such plans in a row
     end the episode."""
-    from planners.base import PlanStats
-    from planners.mirror.plans import Plan
-
     calls = []
 
     def turn(self, state, candidates=None):
-        calls.append(state.delta)
-        xi = np.repeat(state.as_array()[None, :6], 4, axis=0)
-        xi[:, 3:5] = 0.0
-        xi[1:, 5] = state.delta + 0.1
-        stats = PlanStats(0.001, "partial", detail={"stay_cost": 5.0 - len(calls)})  # cost falls: no patience
-        self.last_stats = stats
-        cmds = np.array([[0.0, state.delta + 0.1]] * 3)
-        return Plan(cmds, xi, Candidate(1, None), None, self.line, xi, 1.0, (0.0, 0.0), True, stats)
+        calls.append(state.delta)  # the stay cost falls: ``patience`` never ends it
+        return _standing_plan(self, state, "partial", state.delta + 0.1, 5.0 - len(calls))
 
     monkeypatch.setattr(MirrorPlanner, "plan", turn)
     env = gym.make("MirrorPark-v0").unwrapped
@@ -597,22 +602,14 @@ def test_partial_plans_that_only_turn_the_wheels_end_the_episode_at_the_second(m
 
 
 def test_plans_that_leave_the_car_where_it_stood_are_not_asked_for_a_third_time(monkeypatch):
-    """Two calls from one standing pose whose plans (a partial one: hold still) got the car
+    """Two calls from one standing pose whose plans (ones that hold still) got the car
     nowhere: a third call from there would return the second's plan. The policy gives up
     instead, without calling the planner again."""
-    from planners.base import PlanStats
-    from planners.mirror.plans import Plan
-
     calls = []
 
     def hold(self, state, candidates=None):
         calls.append((state.x, state.y, state.theta))
-        xi = np.repeat(state.as_array()[None, :6], 4, axis=0)
-        xi[:, 3:5] = 0.0
-        stats = PlanStats(0.001, "partial", detail={"stay_cost": 5.0})
-        self.last_stats = stats
-        cmds = np.array([[0.0, state.delta]] * 3)
-        return Plan(cmds, xi, Candidate(1, None), None, self.line, xi, 1.0, (0.0, 0.0), True, stats)
+        return _standing_plan(self, state, "ok", state.delta, 5.0)
 
     monkeypatch.setattr(MirrorPlanner, "plan", hold)
     env = gym.make("MirrorPark-v0").unwrapped
