@@ -442,7 +442,7 @@ def test_giving_up_mid_plan_finishes_the_verified_plan_rather_than_braking_off_i
     policy.reset(Scenario.from_case_id("reverse_rw5.00_sl4.82_sw2.47_th+0_y2.00").build())
     commands = np.array([[3.0, 0.6], [-2.0, 0.3], [-1.0, 0.1]])
     policy.plan, policy.k = SimpleNamespace(commands=commands, states=np.zeros((4, 6))), 1
-    stalled = SimpleNamespace(stats=PlanStats(0.01, "partial", detail={"stay_cost": 5.0}))
+    stalled = SimpleNamespace(states=np.zeros((4, 6)), stats=PlanStats(0.01, "partial", detail={"stay_cost": 5.0}))
     policy.planner.plan = lambda s: stalled
     policy._best["stay_cost"], policy._since_best = 5.0, policy.patience  # no progress for too long
     s = VehicleState(0.0, 0.0, 0.0, v=0.0, a=-1.0, delta=0.3)
