@@ -98,8 +98,11 @@ class MirrorPolicy(Policy):
         early), and waiting out the horizon would only add parking time."""
         if abs(s.v) >= IDLE_SPEED or self.k == 0:
             return False
-        rest = np.abs(self.plan.states[self.k :, 3]).sum() * self.config.dt
-        return bool(rest < IDLE_TRAVEL)
+        return self._travel(self.plan, self.k) < IDLE_TRAVEL
+
+    def _travel(self, plan: Plan, k: int = 0) -> float:
+        """How far ``plan`` moves the car from its step ``k`` on [m]."""
+        return float(np.abs(plan.states[k:, 3]).sum()) * self.config.dt
 
     def _drifted(self, s: VehicleState) -> bool:
         ref = self.plan.states[self.k]
@@ -159,8 +162,7 @@ class MirrorPolicy(Policy):
         # (failed calls aside), the calls that followed returned the same until ``patience``
         # (measured: 6 such calls of up to 790 QPs each in 8 of 500 standard episodes, 170 s
         # of the 627 s of planning of all 500).
-        travel = float(np.abs(plan.states[:, 3]).sum()) * self.config.dt
-        still = here is not None and plan.stats.status == "partial" and travel < IDLE_TRAVEL
+        still = here is not None and plan.stats.status == "partial" and self._travel(plan) < IDLE_TRAVEL
         self._stuck = self._stuck + 1 if still else 0
         if len(self.stats) >= self.max_plans or self._since_best >= self.patience or self._stuck >= 2:
             self.gave_up = True  # no progress: stop safely rather than shuffle for 180 s
