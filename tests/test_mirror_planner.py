@@ -171,6 +171,24 @@ def test_piqp_runs_its_avx2_build_wherever_the_cpu_has_avx2(monkeypatch):
         assert solvers._piqp_build().__name__ == "piqp.piqp_python_avx2"
 
 
+def test_branch_and_bound_ends_at_its_root_when_the_relaxation_decides():
+    """A relaxation that keeps clear of every box is the optimum, and an infeasible one
+    rules out every assignment: either way one QP, the seed left unsolved."""
+    qp, disj, bounds = _boxes_problem()
+    seed = [d.rows[0] for d in disj]
+    qp.c = -2 * np.array([3.0, 3.0])  # the goal lies clear of the boxes
+    res = BranchAndBound(PiqpQP(), node_limit=100).solve(qp, disj, bounds, preferred=seed)
+    assert (res.status, res.qp_solves, res.nodes, res.assignment) == ("solved", 1, 1, (-1, -1, -1))
+    np.testing.assert_allclose(res.x, [3.0, 3.0], atol=1e-4)
+    assert (qp.h_l == INACTIVE).all()  # the rows are handed back switched off
+    qp.c = -2 * np.array([0.2, 0.1])
+    qp.A, qp.b = sp.csc_matrix([[1.0, 0.0]]), np.array([10.0])  # z_0 = 10 beyond its bound of 5
+    res = BranchAndBound(PiqpQP(), node_limit=100).solve(qp, disj, bounds, preferred=seed)
+    assert (res.status, res.qp_solves, res.x) == ("infeasible", 1, None)
+    with pytest.raises(ValueError, match="node_limit"):
+        BranchAndBound(PiqpQP(), node_limit=0)
+
+
 def test_branch_and_bound_matches_exhaustive_enumeration():
     qp, disj, bounds = _boxes_problem()
     bb = BranchAndBound(PiqpQP(), node_limit=10_000, time_limit_s=30).solve(qp, disj, bounds)
