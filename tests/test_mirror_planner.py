@@ -473,6 +473,21 @@ def test_giving_up_mid_plan_finishes_the_verified_plan_rather_than_braking_off_i
     np.testing.assert_allclose(action, to_action(policy.params, hold_accel(policy.params, 0.0, -1.0), 0.3))
 
 
+def test_a_tight_parallel_slot_is_shuffled_into_past_seven_plans_without_a_gain():
+    """In a slot of 1.2 car lengths the car shuffles in, and the cost of standing still
+    falls one switch's price every few plans: here seven plans pass without a 1 % gain, so
+    a patience of 6 (the default until 2026-12-03) gave this park up."""
+    policy = MirrorPolicy()
+    info, _ = run_episode(gym.make("MirrorPark-v0"), policy, "parallel_rw4.00_sl4.62_sw2.50_th+20_y1.60")
+    assert info["is_success"] and not info["collision"]
+    best, since, longest = math.inf, 0, 0
+    for s in policy.stats:
+        cost = s.detail["stay_cost"]
+        best, since = (cost, 0) if cost < 0.99 * best else (best, since + 1)
+        longest = max(longest, since)
+    assert 6 < longest < policy.patience
+
+
 def test_a_slot_without_an_iso_pose_is_refused_at_once():
     policy = MirrorPolicy()
     info, steps = run_episode(gym.make("MirrorPark-v0"), policy, "reverse_rw7.00_sl4.82_sw1.77_th+0_y3.00")
@@ -603,7 +618,7 @@ def _standing_plan(planner, state, status: str, delta: float, stay_cost: float):
 def test_partial_plans_that_only_turn_the_wheels_end_the_episode_at_the_second(monkeypatch):
     """A partial plan that does not move a standing car is a safe stop where it stands. Its
     turned wheels make the next call start from another state, so the standing-state rule
-    does not stop the calls (they went on to ``patience``, 6 calls); two such plans in a row
+    does not stop the calls (they went on to ``patience``); two such plans in a row
     end the episode."""
     calls = []
 
