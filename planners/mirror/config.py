@@ -133,7 +133,7 @@ class MirrorPolicyConfig(StrictModel):
     max_failures: int = Field(8, ge=1)  # consecutive failed solves before giving up
     max_plans: int = Field(40, ge=1)  # plans per episode before giving up
     # Plans in a row without lowering the cost of standing still by 1 %. In tight parallel
-    # slots the car shuffles in and that cost falls one switch's price every few plans
-    # (measured: 7 plans between gains); at 6, 15 of the standard sample's episodes that 12
-    # parks gave up (docs/mirror_planner.md, Execution).
+    # slots the car shuffles in and that cost falls one switch's price every few plans (up
+    # to 7 plans between gains): at 6, 12 standard episodes that park at 8 gave up
+    # (docs/mirror_planner.md, "Execution").
     patience: int = Field(8, ge=1)
