@@ -1,6 +1,6 @@
 """Profile whole episodes of a planner on part of the standard sample (pyinstrument).
 
-    pip install pyinstrument
+    pip install -e ".[profile]"
     python scripts/profile_mirror.py [--planner mirror] [--start 5] [--every 75] [--out profile.txt]
 
 Runs ``evaluation.runner.run_case`` on every ``every``-th standard case from ``start`` in
