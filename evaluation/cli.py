@@ -312,7 +312,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--dagger-rounds",
         type=_positive_int,
         default=None,
-        help="DAgger rounds with a planner as the expert riding along (dagger in configs/rl.yaml; "
+        help="DAgger rounds with a planner as the expert (the dagger section of --config; "
         "with --demos, after cloning them; without, the first round is the expert's own driving)",
     )
     t.set_defaults(func=cmd_train_rl)
