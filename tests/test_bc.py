@@ -330,6 +330,7 @@ def test_an_interrupted_dagger_run_resumes_to_the_weights_of_one_without_a_break
     over = {"lidar": {"rays": 8}, "dagger": dc, "bc": {"epochs": 2}}
     cfg = load_rl_config("configs/rl_dagger.yaml", over)
     whole = dagger(cfg, None, tmp_path / "whole", rounds=2, progress=False)
+    assert (tmp_path / "whole" / "learning_curve.png").stat().st_size > 0
     first = dagger(cfg, None, tmp_path / "cut", rounds=1, progress=False)
     assert [r["round"] for r in first["rounds"]] == [1]
     assert cli(["train-rl", "--resume", str(tmp_path / "cut"), "--dagger-rounds", "2"]) == 0

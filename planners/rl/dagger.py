@@ -297,6 +297,7 @@ def dagger(
             f"{done} DAgger round(s) finished in {out}; go on with: mirrorpark train-rl --resume {out}"
         ) from None
     wall = time.perf_counter() - t0
+    plot_rounds(log, out / "learning_curve.png")
     extra = {}
     if cfg.dagger.gear:
         extra["gear_head"] = {"go": list(learner.go), "standing_labelled": int(np.sum(gears != 0))}
@@ -316,6 +317,31 @@ def dagger(
         action_error_on_all=round(action_error(model, obs, actions), 6),
         **extra,
     )
+
+
+def plot_rounds(log: list[dict[str, Any]], path: str | Path) -> Path:
+    """DAgger's learning curve, a point per round: how its mixed rollouts ended (the expert's
+    action taken with probability beta), and the learner's action error on the round's new
+    states before it was fitted to them (how far the learner strayed from the expert)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    r = [x["round"] for x in log]
+    share = lambda key: [100 * x[key] / max(x["episodes"], 1) for x in log]  # noqa: E731
+    fig, ax = plt.subplots(1, 2, figsize=(9, 3.2))
+    ax[0].plot(r, share("parked"), marker="o", label="parked")
+    ax[0].plot(r, share("collided"), marker="o", label="collided")
+    ax[0].set(xlabel="DAgger round", ylabel="rollouts [%]", title="mixed rollouts", ylim=(-2, 102), xticks=r)
+    ax[0].legend()
+    err = [(x["round"], x["error_on_new_before_fit"]) for x in log if x["error_on_new_before_fit"] is not None]
+    ax[1].plot([e[0] for e in err], [e[1] for e in err], marker="o")
+    ax[1].set(xlabel="DAgger round", ylabel="mean squared action error", title="learner on the new states", xticks=r)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
 
 
 def _rounds(cfg: RLConfig, learner, grid, out: Path, rounds: int, state: tuple, t0: float, progress: bool) -> tuple:
