@@ -539,6 +539,7 @@ def test_a_plan_that_stops_hard_next_to_an_obstacle_is_not_safe():
     then carries the car on under the policy's brake. In this 4.22 m slot (a state traced
     from an episode that touched the front neighbour that way) the plan alone is clear and
     ends standing, its brake afterwards is not, and the truth check must see that."""
+    from planners.common.tracker import hold_accel
     from planners.mirror.checks import Checks
 
     g = Scenario.from_case_id("parallel_rw3.50_sl4.22_sw2.50_th+0_y2.60").build()
@@ -549,12 +550,44 @@ def test_a_plan_that_stops_hard_next_to_an_obstacle_is_not_safe():
     start = checks.start(xi0)
     assert abs(end[-1, 3]) < 0.05 and end[-1, 4] > 2.0  # standing, still accelerating forward
     assert checks.clear_and_stopped([end[:, :3]], end[-1, :6], start)  # the plan alone passes
-    tail = checks.brake_tail(end[-1, :6])
-    assert tail[:, 3].max() > 0.15 and abs(tail[-1, 3]) < 1e-3  # rolls on, then stands
+    s, speeds = tuple(end[-1, :6]), []  # the brake after it, on the truth model
+    for _ in range(30):
+        rows = checks.truth.step_rows(s, hold_accel(g.vehicle, s[3], s[4]), s[5])
+        speeds += [r[3] for r in rows]
+        s = rows[-1][:6]
+    assert max(speeds) > 0.15 and abs(speeds[-1]) < 1e-3  # rolls on, then stands
     assert not checks.truth_safe(xi0, u, start)
     calm = xi0.copy()
     calm[3:5] = 0.0  # the same pose at rest: nothing rolls on
     assert checks.truth_safe(calm, np.array([[0.0, calm[5]]]), checks.start(calm))
+
+
+def test_the_compiled_brake_tail_repeats_the_truth_model_bit_for_bit():
+    """The brake after a plan (``Checks.brake_tail``, compiled) gives the poses of the truth
+    model's own steps under ``hold_accel``, chained in Python, to the last bit: standing or
+    moving, inside and beyond the actuator bounds, and on for all its steps after the car
+    stands."""
+    from planners.common.tracker import hold_accel
+    from planners.mirror.checks import BRAKE_STEPS, Checks
+
+    checks = Checks(Scenario.from_case_id(EASY_CASES[0]).build(), MirrorPlannerConfig())
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        state = (
+            *rng.uniform(-20, 20, 2),
+            rng.uniform(-np.pi, np.pi),
+            rng.uniform(-2.5, 2.5) * rng.integers(0, 2),
+            rng.uniform(-3, 3),
+            rng.uniform(-0.7, 0.7),
+        )
+        for steps in (1, 7, BRAKE_STEPS):
+            s, want = state, []
+            for _ in range(steps):
+                rows = checks.truth.step_rows(s, hold_accel(checks.p, s[3], s[4]), s[5])
+                want += [r[:3] for r in rows]
+                s = rows[-1][:6]
+            got = checks.brake_tail(np.array(state), steps)
+            assert got.shape == (len(want), 3) and np.array_equal(got, np.array(want))
 
 
 @pytest.mark.slow

@@ -75,7 +75,7 @@ def _chained(model, state, a_cmd, d_cmd, brake_steps):
 
 def test_the_compiled_look_ahead_repeats_the_truth_model_bit_for_bit():
     from mirrorpark_env.vehicle import TruthModel, VehicleParams
-    from planners.rl.shield_kernel import BrakeRollout
+    from planners.common.brake import BrakeRollout
 
     p = VehicleParams.table_ii()
     model = TruthModel(p, 0.1, 0.01)

@@ -12,6 +12,7 @@ from mirrorpark_env.angles import unwrap_near
 from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import TruthModel
 
+from ..common.brake import BrakeRollout
 from ..common.clearance import gaps, required_gap
 from ..common.tracker import hold_accel
 from .config import MirrorPlannerConfig
@@ -39,6 +40,7 @@ class Checks:
         self.p = geometry.vehicle
         self.N = cfg.horizon
         self.truth = TruthModel(self.p, cfg.dt, 0.01)
+        self.brake = BrakeRollout(self.truth)  # compiled: common/brake.py
 
     def start(self, xi0: np.ndarray) -> Start:
         return Start(float(xi0[0]), float(xi0[1]), float(gaps(self.g.checker, xi0[None, :3])[0]))
@@ -84,17 +86,12 @@ class Checks:
         comes, the lag carries the car on until the brake has caught it."""
         sub = self.truth.rollout(xi0, u_real)
         tail = self.brake_tail(sub[-1, :6])
-        return self.clear_and_stopped([sub[:, :3], tail[:, :3]], sub[-1, :6], start, clearance)
+        return self.clear_and_stopped([sub[:, :3], tail], sub[-1, :6], start, clearance)
 
     def brake_tail(self, state: np.ndarray, steps: int = BRAKE_STEPS) -> np.ndarray:
-        """Sub-step states (steps * n, 7) under the policy's brake from ``state``: the hold law
-        on the acceleration, the steering held where it is."""
-        rows: list[tuple[float, ...]] = []
-        s = tuple(float(v) for v in state[:6])
-        for _ in range(steps):
-            rows += self.truth.step_rows(s, hold_accel(self.p, s[XI_V], s[XI_A]), s[XI_D])
-            s = rows[-1][:6]
-        return np.array(rows)
+        """Sub-step poses (steps * n, 3) under the policy's brake from ``state``: the hold law
+        on the acceleration (``tracker.hold_accel``), the steering held where it is."""
+        return self.brake.tail(state, steps)
 
     # ------------------------------------------------------------------ cost
     def true_cost(self, real: np.ndarray, goal: np.ndarray, theta_t: float) -> tuple[float, float, float]:
@@ -154,7 +151,7 @@ class Checks:
                 s = sub[-1, :6]
                 states.append(s)
                 cmds.append((a, d))
-            poses.append(self.brake_tail(s)[:, :3])  # and the policy's brake after it, as truth_safe
+            poses.append(self.brake_tail(s))  # and the policy's brake after it, as truth_safe
             if self.clear_and_stopped(poses, s, start):
                 real = np.array(states)
                 cost, pos_err, th_err = self.true_cost(real, goal, theta_t)

@@ -24,11 +24,11 @@ from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import TruthModel, VehicleState, from_action, to_action
 
 from ..base import PlanStats, Policy
+from ..common.brake import BrakeRollout
 from ..common.clearance import gaps
 from ..common.safety import MIN_GAP  # the tracking policies' stopping check keeps the same gap
 from ..common.tracker import hold_accel
 from .gear import STAND_SPEED
-from .shield_kernel import BrakeRollout
 
 BRAKE_STEPS = 40  # control steps of braking tried at most (4 s at 0.1 s)
 
@@ -39,7 +39,7 @@ class Shield:
     def __init__(self, geometry: ScenarioGeometry, dt: float = 0.1):
         self.g = geometry
         self.p = geometry.vehicle
-        self.rollout = BrakeRollout(TruthModel(self.p, dt, 0.01))  # compiled: shield_kernel.py
+        self.rollout = BrakeRollout(TruthModel(self.p, dt, 0.01))  # compiled: common/brake.py
 
     def decide(
         self, s: VehicleState, action: np.ndarray, second: Callable[[np.ndarray], np.ndarray] | None = None

@@ -1,10 +1,12 @@
-"""The safety filter's look-ahead, compiled (numba): one step of a command, then the brake.
+"""The brake on the truth model, compiled (numba): the safety filter's look-ahead (one step
+of a command, then the brake until the car stands) and the mirror planner's brake tail
+after a plan (a fixed number of brake steps).
 
-A profile of ``rl-shield`` on the smoke sample put 56 % of a decision's time in the filter,
-most of it in ``TruthModel.step_rows``: up to 41 control steps of 10 sub-steps each, one
-Python float at a time. This kernel runs the same sub-steps with the same operations in the
-same order (tests/test_shield.py compares its poses with chained ``step_rows`` bit for
-bit), so the filter's verdicts do not change.
+Both ran ``TruthModel.step_rows`` one Python float at a time: in a profile of ``rl-shield``
+on the smoke sample, 56 % of a decision's time was the filter. This kernel runs the same
+sub-steps with the same operations in the same order (tests/test_shield.py and
+tests/test_mirror_planner.py compare its poses with chained ``step_rows`` bit for bit), so
+no verdict changes.
 """
 
 from __future__ import annotations
@@ -18,18 +20,19 @@ from mirrorpark_env.vehicle import TruthModel
 
 
 @njit(cache=True, nogil=True)
-def _brake_poses(state, a_cmd, d_cmd, brake_steps, lags, consts):  # pragma: no cover - compiled
-    """Rear-axle poses (m, 3) at every sub-step of one step of (a_cmd, d_cmd), then of the
-    brake (steering held) until the car stands or ``brake_steps`` control steps have passed."""
+def _brake_poses(state, a_cmd, d_cmd, brake_steps, lags, consts, lead, stop):  # pragma: no cover - compiled
+    """Rear-axle poses (m, 3) at every sub-step of one step of (a_cmd, d_cmd) (``lead``;
+    else of the brake), then of the brake (steering held) for ``brake_steps`` control steps,
+    or until the car stands (``stop``)."""
     h, inv_l, v_min, v_max, dv_lag, a_min, a_max, max_steer, tau_a = consts
     n = lags.shape[0]
     out = np.empty(((brake_steps + 1) * n, 3))
     x, y, th, v, a0, d0 = state[0], state[1], state[2], state[3], state[4], state[5]
     m = 0
     for step in range(brake_steps + 1):
-        if step > 0:
-            if abs(v) < 1e-3 and abs(a0) < 1e-2:
-                break
+        if step > 0 and stop and abs(v) < 1e-3 and abs(a0) < 1e-2:
+            break
+        if step > 0 or not lead:
             a_cmd = max(a_min, min(a_max, -(v / tau_a + a0)))  # tracker.hold_accel
             d_cmd = d0
         ac = min(max(a_cmd, a_min), a_max)  # TruthModel.clip_commands
@@ -58,7 +61,7 @@ def _brake_poses(state, a_cmd, d_cmd, brake_steps, lags, consts):  # pragma: no 
 
 
 class BrakeRollout:
-    """The filter's look-ahead for one truth model, with its sub-step constants packed once."""
+    """The brake on one truth model, with its sub-step constants packed once."""
 
     def __init__(self, model: TruthModel) -> None:
         p = model.params
@@ -80,4 +83,10 @@ class BrakeRollout:
         delta), then of ``tracker.hold_accel`` with the steering held, until the speed and
         acceleration die away (|v| < 1 mm/s, |a| < 1 cm/s^2) or ``brake_steps`` steps pass."""
         s = np.asarray(state, dtype=float)[:6]
-        return _brake_poses(s, float(a_cmd), float(d_cmd), int(brake_steps), self.lags, self.consts)
+        return _brake_poses(s, float(a_cmd), float(d_cmd), int(brake_steps), self.lags, self.consts, True, True)
+
+    def tail(self, state, steps: int) -> np.ndarray:
+        """Poses (steps * n, 3) of ``steps`` control steps of the brake from ``state``, standing
+        or not (a car that nearly stands creeps on, and its creep is part of the check)."""
+        s = np.asarray(state, dtype=float)[:6]
+        return _brake_poses(s, 0.0, 0.0, int(steps) - 1, self.lags, self.consts, False, False)
