@@ -683,3 +683,34 @@ def test_plans_that_leave_the_car_where_it_stood_are_not_asked_for_a_third_time(
     info, _ = run_episode(env, policy, "reverse_rw6.00_sl4.82_sw2.47_th+0_y1.40")
     assert not info["is_success"] and info["path_length"] < 0.01
     assert len(calls) == 2 and policy.gave_up and policy.status == "gave_up"
+
+
+def test_the_compiled_seed_rollouts_repeat_the_numpy_loop_bit_for_bit():
+    """The multi-start seeds' closed loop (``seed_kernel``) gives the sub-step states of the
+    numpy loop it replaced (the controller, then ``TruthModel.step_batch``), to the last bit:
+    moving and standing starts, references beyond the actuator bounds, both gears."""
+    from mirrorpark_env.vehicle import TruthModel
+    from planners.mirror.seed_kernel import SeedRollouts
+
+    p = VehicleParams.table_ii()
+    cfg = MirrorPlannerConfig()
+    coarse = TruthModel(p, cfg.dt, cfg.dt / cfg.model_substeps)  # the planner's planning model
+    roll = SeedRollouts(coarse)
+    rng = np.random.default_rng(11)
+    for _ in range(40):
+        K, N = int(rng.integers(1, 12)), int(rng.integers(1, 70))
+        xi0 = np.array([*rng.uniform(-10, 10, 2), rng.uniform(-np.pi, np.pi), rng.uniform(-2, 2) * rng.integers(0, 2),
+                        rng.uniform(-3, 3), rng.uniform(-0.7, 0.7)])  # fmt: skip
+        v_ref = rng.uniform(-2.5, 2.5, (K, N))
+        th_ref = xi0[2] + rng.uniform(-2, 2, (K, N))
+        sgn = np.where(v_ref >= 0, 1.0, -1.0)
+        want = np.empty((K, 1 + N * coarse.n, 6))
+        want[:, 0] = xi0
+        state = np.repeat(xi0[None], K, axis=0)
+        for i in range(N):
+            a_cmd = np.clip(3.0 * (v_ref[:, i] - state[:, 3]) - 0.5 * state[:, 4], p.a_min, p.a_max)
+            d_cmd = np.clip(2.5 * (th_ref[:, i] - state[:, 2]) * sgn[:, i], -p.max_steer, p.max_steer)
+            sub = coarse.step_batch(state, a_cmd, d_cmd)
+            want[:, 1 + i * coarse.n : 1 + (i + 1) * coarse.n] = sub
+            state = sub[:, -1]
+        assert np.array_equal(roll(xi0, v_ref, th_ref, sgn), want)

@@ -22,10 +22,11 @@ from mirrorpark_env.vehicle import TruthModel, VehicleState
 from ..common.path import Path
 from ..common.tracker import PathTracker, TrackerConfig
 from .config import MirrorPlannerConfig
-from .frames import XI_A, XI_TH, XI_V, XI_Y
+from .frames import XI_TH, XI_Y
 from .guide import Guide
 from .mirror_line import MirrorLine
 from .plans import Candidate
+from .seed_kernel import SeedRollouts
 
 TURN = math.inf  # seed mode: steer toward the target heading in both segments
 
@@ -90,6 +91,7 @@ class ShapeSeeds:
     def __init__(self, geometry: ScenarioGeometry, cfg: MirrorPlannerConfig, coarse: TruthModel):
         self.g, self.cfg, self.coarse = geometry, cfg, coarse
         self.p, self.N = geometry.vehicle, cfg.horizon
+        self.rollouts = SeedRollouts(coarse)  # compiled: seed_kernel.py
 
     @property
     def first_direction(self) -> int:
@@ -141,7 +143,7 @@ class ShapeSeeds:
 
     def seeds(self, xi0: np.ndarray, pairs: list[tuple[Candidate, float | None]], line: MirrorLine) -> np.ndarray:
         """``seed`` of each (candidate, swing), rolled out together: (K, 2N + 1, 6)."""
-        N, dt, p = self.N, self.cfg.dt, self.p
+        N, dt = self.N, self.cfg.dt
         tx, ty, tth = self.g.target
         tth = unwrap_near(tth, xi0[XI_TH])
         u_t = np.array([math.cos(tth), math.sin(tth)])
@@ -168,16 +170,9 @@ class ShapeSeeds:
                 v_ref[k, i] = d * (vc1 if seg1 else vc2) * math.sin(math.pi * min(tau, 1.0))
                 th_ref[k, i] = self._heading_ref(cand, line, swing, seg1, tau, tth, xi0[XI_TH])
         sgn = np.where(v_ref >= 0, 1.0, -1.0)
-        out = np.empty((len(pairs), 1 + N * self.coarse.n, 6))
-        out[:, 0] = xi0[:6]
-        state = np.repeat(np.asarray(xi0[:6], float)[None], len(pairs), axis=0)
-        for i in range(N):
-            a_cmd = np.clip(3.0 * (v_ref[:, i] - state[:, XI_V]) - 0.5 * state[:, XI_A], p.a_min, p.a_max)
-            d_cmd = np.clip(2.5 * (th_ref[:, i] - state[:, XI_TH]) * sgn[:, i], -p.max_steer, p.max_steer)
-            sub = self.coarse.step_batch(state, a_cmd, d_cmd)
-            out[:, 1 + i * self.coarse.n : 1 + (i + 1) * self.coarse.n] = sub
-            state = sub[:, -1]
-        return out
+        # Each seed under a speed controller (3.0 (v_ref - v) - 0.5 a) and a heading one
+        # (2.5 (th_ref - th), sign by gear), on the planning model.
+        return self.rollouts(xi0, v_ref, th_ref, sgn)
 
     def _heading_ref(self, cand, line, swing, seg1: bool, tau: float, tth: float, th0: float) -> float:
         """Heading to steer toward at phase ``tau`` of a segment: for parallel parking an
