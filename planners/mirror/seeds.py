@@ -5,7 +5,7 @@
   a rollout and the goal of the plan.
 - ``ShapeSeeds``: without a guide, rollouts of the manoeuvre's classic shape for every
   candidate (both gears, two switch steps, no switch) and a few heading excursions,
-  ranked by merit (a multi-start: a rollout costs about a millisecond, an SCP tens).
+  ranked by merit (a multi-start: 18 seeds roll out in about 0.2 ms compiled, an SCP takes tens).
 """
 
 from __future__ import annotations
