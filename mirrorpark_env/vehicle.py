@@ -140,10 +140,21 @@ class TruthModel:
         lag's at its middle and end (for compiled loops that repeat ``step_rows``)."""
         return np.array([self._ea_start, self._ea_end, self._ed_mid, self._ed_end], dtype=float).T.copy()
 
-    @property
-    def dv_lag(self) -> float:
-        """The speed a sub-step gains per unit of acceleration lag (for the same loops)."""
-        return self._dv_lag
+    def step_constants(self) -> tuple[float, ...]:
+        """(h, 1 / wheelbase, v_min, v_max, dv_lag, a_min, a_max, max_steer, tau_a): the scalars
+        ``step_rows`` and the brake's hold law use, for compiled loops that repeat them."""
+        p = self.params
+        return (
+            float(self.h),
+            1.0 / p.wheelbase,
+            float(p.v_min),
+            float(p.v_max),
+            float(self._dv_lag),
+            float(p.a_min),
+            float(p.a_max),
+            float(p.max_steer),
+            float(p.tau_a),
+        )
 
     def clip_commands(self, a_cmd: float, delta_cmd: float) -> tuple[float, float]:
         p = self.params

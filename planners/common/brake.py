@@ -64,19 +64,7 @@ class BrakeRollout:
     """The brake on one truth model, with its sub-step constants packed once."""
 
     def __init__(self, model: TruthModel) -> None:
-        p = model.params
-        self.lags = model.lag_factors()
-        self.consts = (
-            float(model.h),
-            1.0 / p.wheelbase,
-            float(p.v_min),
-            float(p.v_max),
-            float(model.dv_lag),
-            float(p.a_min),
-            float(p.a_max),
-            float(p.max_steer),
-            float(p.tau_a),
-        )
+        self.lags, self.consts = model.lag_factors(), model.step_constants()
 
     def __call__(self, state, a_cmd: float, d_cmd: float, brake_steps: int) -> np.ndarray:
         """Poses (m, 3) of one step of the commands from ``state`` (x, y, theta, v, a,

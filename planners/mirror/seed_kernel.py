@@ -20,7 +20,7 @@ from mirrorpark_env.vehicle import TruthModel
 @njit(cache=True, nogil=True)
 def _rollouts(xi0, v_ref, th_ref, sgn, lags, consts):  # pragma: no cover - compiled
     """(K, 1 + N n, 6) sub-step states of K seeds from ``xi0`` under the seeds' controller."""
-    h, inv_l, v_min, v_max, dv_lag, a_min, a_max, max_steer = consts
+    h, inv_l, v_min, v_max, dv_lag, a_min, a_max, max_steer, _ = consts  # TruthModel.step_constants
     K, N = v_ref.shape
     n = lags.shape[0]
     out = np.empty((K, 1 + N * n, 6))
@@ -63,18 +63,7 @@ class SeedRollouts:
     """The seeds' rollouts on one planning model, with its sub-step constants packed once."""
 
     def __init__(self, model: TruthModel) -> None:
-        p = model.params
-        self.lags = model.lag_factors()
-        self.consts = (
-            float(model.h),
-            1.0 / p.wheelbase,
-            float(p.v_min),
-            float(p.v_max),
-            float(model.dv_lag),
-            float(p.a_min),
-            float(p.a_max),
-            float(p.max_steer),
-        )
+        self.lags, self.consts = model.lag_factors(), model.step_constants()
 
     def __call__(self, xi0: np.ndarray, v_ref: np.ndarray, th_ref: np.ndarray, sgn: np.ndarray) -> np.ndarray:
         """(K, 1 + N n, 6): each seed's sub-step states under its references (K, N)."""
