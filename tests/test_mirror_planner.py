@@ -713,4 +713,4 @@ def test_the_compiled_seed_rollouts_repeat_the_numpy_loop_bit_for_bit():
             sub = coarse.step_batch(state, a_cmd, d_cmd)
             want[:, 1 + i * coarse.n : 1 + (i + 1) * coarse.n] = sub
             state = sub[:, -1]
-        assert np.array_equal(roll(xi0, v_ref, th_ref, sgn), want)
+        assert np.array_equal(roll(xi0, v_ref, th_ref), want)

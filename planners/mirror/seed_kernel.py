@@ -18,8 +18,9 @@ from mirrorpark_env.vehicle import TruthModel
 
 
 @njit(cache=True, nogil=True)
-def _rollouts(xi0, v_ref, th_ref, sgn, lags, consts):  # pragma: no cover - compiled
-    """(K, 1 + N n, 6) sub-step states of K seeds from ``xi0`` under the seeds' controller."""
+def _rollouts(xi0, v_ref, th_ref, lags, consts):  # pragma: no cover - compiled
+    """(K, 1 + N n, 6) sub-step states of K seeds from ``xi0`` under the seeds' controller
+    (the heading error's sign by the reference speed's: the gear)."""
     h, inv_l, v_min, v_max, dv_lag, a_min, a_max, max_steer, _ = consts  # TruthModel.step_constants
     K, N = v_ref.shape
     n = lags.shape[0]
@@ -31,7 +32,8 @@ def _rollouts(xi0, v_ref, th_ref, sgn, lags, consts):  # pragma: no cover - comp
         m = 1
         for i in range(N):
             a_cmd = min(max(3.0 * (v_ref[k, i] - v) - 0.5 * a, a_min), a_max)
-            d_cmd = min(max(2.5 * (th_ref[k, i] - th) * sgn[k, i], -max_steer), max_steer)
+            sgn = 1.0 if v_ref[k, i] >= 0 else -1.0
+            d_cmd = min(max(2.5 * (th_ref[k, i] - th) * sgn, -max_steer), max_steer)
             a_cmd = min(max(a_cmd, a_min), a_max)  # step_batch clips again
             d_cmd = min(max(d_cmd, -max_steer), max_steer)
             da = a - a_cmd
@@ -65,7 +67,7 @@ class SeedRollouts:
     def __init__(self, model: TruthModel) -> None:
         self.lags, self.consts = model.lag_factors(), model.step_constants()
 
-    def __call__(self, xi0: np.ndarray, v_ref: np.ndarray, th_ref: np.ndarray, sgn: np.ndarray) -> np.ndarray:
+    def __call__(self, xi0: np.ndarray, v_ref: np.ndarray, th_ref: np.ndarray) -> np.ndarray:
         """(K, 1 + N n, 6): each seed's sub-step states under its references (K, N)."""
         x = np.ascontiguousarray(np.asarray(xi0, float)[:6])
-        return _rollouts(x, v_ref, th_ref, sgn, self.lags, self.consts)
+        return _rollouts(x, v_ref, th_ref, self.lags, self.consts)

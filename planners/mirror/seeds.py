@@ -89,8 +89,7 @@ class ShapeSeeds:
     """The multi-start seeds of a plan without a guide."""
 
     def __init__(self, geometry: ScenarioGeometry, cfg: MirrorPlannerConfig, coarse: TruthModel):
-        self.g, self.cfg, self.coarse = geometry, cfg, coarse
-        self.p, self.N = geometry.vehicle, cfg.horizon
+        self.g, self.cfg, self.N = geometry, cfg, cfg.horizon
         self.rollouts = SeedRollouts(coarse)  # compiled: seed_kernel.py
 
     @property
@@ -169,10 +168,9 @@ class ShapeSeeds:
                 d = cand.direction if seg1 else -cand.direction
                 v_ref[k, i] = d * (vc1 if seg1 else vc2) * math.sin(math.pi * min(tau, 1.0))
                 th_ref[k, i] = self._heading_ref(cand, line, swing, seg1, tau, tth, xi0[XI_TH])
-        sgn = np.where(v_ref >= 0, 1.0, -1.0)
         # Each seed under a speed controller (3.0 (v_ref - v) - 0.5 a) and a heading one
         # (2.5 (th_ref - th), sign by gear), on the planning model.
-        return self.rollouts(xi0, v_ref, th_ref, sgn)
+        return self.rollouts(xi0, v_ref, th_ref)
 
     def _heading_ref(self, cand, line, swing, seg1: bool, tau: float, tth: float, th0: float) -> float:
         """Heading to steer toward at phase ``tau`` of a segment: for parallel parking an
