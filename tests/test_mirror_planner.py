@@ -534,12 +534,24 @@ def test_a_parallel_slot_of_118_car_lengths_parks_by_turns_inside_it():
     assert info["direction_switches"] >= 5
 
 
+def _chained_brake(truth, state, steps: int) -> np.ndarray:
+    """Sub-step rows of ``steps`` control steps of the policy's brake (``hold_accel``, the
+    steering held), the truth model's own steps chained in Python."""
+    from planners.common.tracker import hold_accel
+
+    s, rows = tuple(float(v) for v in state[:6]), []
+    for _ in range(steps):
+        step = truth.step_rows(s, hold_accel(truth.params, s[3], s[4]), s[5])
+        rows += step
+        s = step[-1][:6]
+    return np.array(rows)
+
+
 def test_a_plan_that_stops_hard_next_to_an_obstacle_is_not_safe():
     """A plan may end at zero speed with the acceleration of a hard stop still on; the lag
     then carries the car on under the policy's brake. In this 4.22 m slot (a state traced
     from an episode that touched the front neighbour that way) the plan alone is clear and
     ends standing, its brake afterwards is not, and the truth check must see that."""
-    from planners.common.tracker import hold_accel
     from planners.mirror.checks import Checks
 
     g = Scenario.from_case_id("parallel_rw3.50_sl4.22_sw2.50_th+0_y2.60").build()
@@ -550,12 +562,8 @@ def test_a_plan_that_stops_hard_next_to_an_obstacle_is_not_safe():
     start = checks.start(xi0)
     assert abs(end[-1, 3]) < 0.05 and end[-1, 4] > 2.0  # standing, still accelerating forward
     assert checks.clear_and_stopped([end[:, :3]], end[-1, :6], start)  # the plan alone passes
-    s, speeds = tuple(end[-1, :6]), []  # the brake after it, on the truth model
-    for _ in range(30):
-        rows = checks.truth.step_rows(s, hold_accel(g.vehicle, s[3], s[4]), s[5])
-        speeds += [r[3] for r in rows]
-        s = rows[-1][:6]
-    assert max(speeds) > 0.15 and abs(speeds[-1]) < 1e-3  # rolls on, then stands
+    speeds = _chained_brake(checks.truth, end[-1, :6], 30)[:, 3]  # the brake after it
+    assert speeds.max() > 0.15 and abs(speeds[-1]) < 1e-3  # rolls on, then stands
     assert not checks.truth_safe(xi0, u, start)
     calm = xi0.copy()
     calm[3:5] = 0.0  # the same pose at rest: nothing rolls on
@@ -567,7 +575,6 @@ def test_the_compiled_brake_tail_repeats_the_truth_model_bit_for_bit():
     model's own steps under ``hold_accel``, chained in Python, to the last bit: standing or
     moving, inside and beyond the actuator bounds, and on for all its steps after the car
     stands."""
-    from planners.common.tracker import hold_accel
     from planners.mirror.checks import BRAKE_STEPS, Checks
 
     checks = Checks(Scenario.from_case_id(EASY_CASES[0]).build(), MirrorPlannerConfig())
@@ -581,13 +588,9 @@ def test_the_compiled_brake_tail_repeats_the_truth_model_bit_for_bit():
             rng.uniform(-0.7, 0.7),
         )
         for steps in (1, 7, BRAKE_STEPS):
-            s, want = state, []
-            for _ in range(steps):
-                rows = checks.truth.step_rows(s, hold_accel(checks.p, s[3], s[4]), s[5])
-                want += [r[:3] for r in rows]
-                s = rows[-1][:6]
+            want = _chained_brake(checks.truth, state, steps)[:, :3]
             got = checks.brake_tail(np.array(state), steps)
-            assert got.shape == (len(want), 3) and np.array_equal(got, np.array(want))
+            assert got.shape == want.shape and np.array_equal(got, want)
 
 
 @pytest.mark.slow
