@@ -118,6 +118,18 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_diff(args: argparse.Namespace) -> int:
+    from .diff import compare, format_diff
+    from .store import read_results
+
+    d = compare(read_results(args.before), read_results(args.after))
+    if args.json:
+        print(json.dumps(d.to_json()))
+    else:
+        print(format_diff(d, args.list), end="")
+    return 0
+
+
 def cmd_main(args: argparse.Namespace) -> int:
     """The main job: a smoke evaluation of the main planners (registry.MAIN), then the report."""
     from .registry import MAIN
@@ -255,6 +267,16 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--notes", default=None, help="a Markdown file appended to the report (the author's reading)")
     r.add_argument("--baseline", default=None, help="planner to compare against (default: hybrid-astar if present)")
     r.set_defaults(func=cmd_report)
+
+    f = sub.add_parser(
+        "diff",
+        help="compare two runs over the same cases: rows kept or changed, cases gained and lost, cost",
+    )
+    f.add_argument("--before", nargs="+", required=True, help="results folders, .parquet or .jsonl files")
+    f.add_argument("--after", nargs="+", required=True, help="the same for the other run")
+    f.add_argument("--list", type=int, default=10, help="gained and lost cases to list (default 10)")
+    f.add_argument("--json", action="store_true", help="one JSON object instead of Markdown")
+    f.set_defaults(func=cmd_diff)
 
     m = sub.add_parser(
         "main",

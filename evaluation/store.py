@@ -292,6 +292,21 @@ EXPORT_COLUMNS = (
 )  # fmt: skip
 
 
+def exported_values(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` (index reset) with its numbers rounded as ``export_table`` stores them, to what
+    each measure needs: margins, clearances and failure amounts to 0.1 mm, other lengths,
+    angles and speeds to 1e-3, times to 0.1 ms (episode wall time 10 ms). With zstd at
+    level 19 a row then takes about 70 bytes: a full-grid table is about 5 MB."""
+    out = df.reset_index(drop=True).copy()
+    fine = {"failure_amount", "min_clearance_m", "min_clearance_away_m", *(c for c in out if c.startswith("M_"))}
+    for c in out.columns:
+        if out[c].dtype.kind == "f" and c not in ("road_width", "slot_length", "slot_width", "theta0_deg", "y0"):
+            out[c] = out[c].round(1 if c.endswith("_ms") else 2 if c.endswith("_s") else 4 if c in fine else 3)
+    if "plan_times_ms" in out:
+        out["plan_times_ms"] = [None if t is None else [round(float(v), 1) for v in t] for t in out["plan_times_ms"]]
+    return out
+
+
 def export_table(
     df: pd.DataFrame,
     folder: str | Path,
@@ -310,16 +325,7 @@ def export_table(
     if chunk:
         k, n = chunk.split("/")
         name += f"-chunk{int(k):02d}-of-{int(n):02d}"
-    out = df[[c for c in EXPORT_COLUMNS if c in df.columns]].sort_values("case_id").reset_index(drop=True)
-    # Rounded to what each measure needs: margins, clearances and failure amounts to 0.1 mm,
-    # other lengths, angles and speeds to 1e-3, times to 0.1 ms (episode wall time 10 ms).
-    # With zstd at level 19 a row takes about 70 bytes: a full-grid table is about 5 MB.
-    fine = {"failure_amount", "min_clearance_m", "min_clearance_away_m", *(c for c in out if c.startswith("M_"))}
-    for c in out.columns:
-        if out[c].dtype.kind == "f" and c not in ("road_width", "slot_length", "slot_width", "theta0_deg", "y0"):
-            out[c] = out[c].round(1 if c.endswith("_ms") else 2 if c.endswith("_s") else 4 if c in fine else 3)
-    if "plan_times_ms" in out:
-        out["plan_times_ms"] = [None if t is None else [round(float(v), 1) for v in t] for t in out["plan_times_ms"]]
+    out = exported_values(df[[c for c in EXPORT_COLUMNS if c in df.columns]].sort_values("case_id"))
     import pyarrow as pa
     import pyarrow.parquet as pq
 
