@@ -122,7 +122,7 @@ def cmd_diff(args: argparse.Namespace) -> int:
     from .diff import compare, format_diff
     from .store import read_results
 
-    d = compare(read_results(args.before), read_results(args.after))
+    d = compare(read_results(args.before), read_results(args.after), by=args.by)
     if args.json:
         print(json.dumps(d.to_json()))
     else:
@@ -275,6 +275,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--before", nargs="+", required=True, help="results folders, .parquet or .jsonl files")
     f.add_argument("--after", nargs="+", required=True, help="the same for the other run")
     f.add_argument("--list", type=int, default=10, help="gained and lost cases to list (default 10)")
+    f.add_argument("--by", default=None, help="also per value of a case column: parking_type, road_width, y0, ...")
     f.add_argument("--json", action="store_true", help="one JSON object instead of Markdown")
     f.set_defaults(func=cmd_diff)
 

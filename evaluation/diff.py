@@ -51,6 +51,8 @@ class RunDiff:
     planning_s_before: float  # summed call times: comparable only when paired
     planning_s_after: float
     causes_lost: dict[str, int] = field(default_factory=dict)  # the lost cases' failure causes after
+    by: str | None = None  # the column ``groups`` splits the cases by
+    groups: dict[str, dict[str, float | int]] = field(default_factory=dict)  # value -> cases, success, gained, lost
 
     def to_json(self) -> dict[str, Any]:
         d = asdict(self)
@@ -90,8 +92,14 @@ def _planning_s(df: pd.DataFrame) -> float:
     return float(sum(sum(t) for t in df["plan_times_ms"] if t is not None and len(t))) / 1e3
 
 
-def compare(before: pd.DataFrame, after: pd.DataFrame) -> RunDiff:
-    """``RunDiff`` of two result tables (``read_results``), one planner each."""
+BY_COLUMNS = ("parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "y0", "feasible")
+
+
+def compare(before: pd.DataFrame, after: pd.DataFrame, by: str | None = None) -> RunDiff:
+    """``RunDiff`` of two result tables (``read_results``), one planner each; ``by``: also
+    per value of that case column (one of ``BY_COLUMNS``)."""
+    if by is not None and by not in BY_COLUMNS:
+        raise ValueError(f"by: must be one of {', '.join(BY_COLUMNS)}, got {by!r}")
     name_b, name_a = _one_planner(before, "before"), _one_planner(after, "after")
     cols = [c for c in EXPORT_COLUMNS if c in before.columns and c in after.columns]
     b = exported_values(before[cols].sort_values("case_id")).set_index("case_id")
@@ -112,6 +120,19 @@ def compare(before: pd.DataFrame, after: pd.DataFrame) -> RunDiff:
     both = ok_b & ok_a
     lost = common[ok_b & ~ok_a]
     causes = a.loc[lost, "failure_cause"].fillna("none").str.split(":").str[0].value_counts()
+    groups: dict[str, dict[str, float | int]] = {}
+    if by is not None:
+        if by not in b.columns:
+            raise ValueError(f"by: the results hold no column {by!r}")
+        for value, idx in b.groupby(by, sort=True).groups.items():
+            gb, ga = ok_b.loc[idx], ok_a.loc[idx]
+            groups[str(value)] = {
+                "cases": len(idx),
+                "success_before": float(gb.mean()),
+                "success_after": float(ga.mean()),
+                "gained": int((ga & ~gb).sum()),
+                "lost": int((gb & ~ga).sum()),
+            }
     return RunDiff(
         before=name_b,
         after=name_a,
@@ -136,6 +157,8 @@ def compare(before: pd.DataFrame, after: pd.DataFrame) -> RunDiff:
         planning_s_before=_planning_s(b),
         planning_s_after=_planning_s(a),
         causes_lost={str(k): int(v) for k, v in causes.items()},
+        by=by,
+        groups=groups,
     )
 
 
@@ -170,6 +193,13 @@ def format_diff(d: RunDiff, list_cases: int = 10) -> str:
         + f". Where both park ({d.both_parked:,}): switches {_both(d.switches_before, d.switches_after, '.2f')}, "
         f"parking time {_both(d.parking_time_before, d.parking_time_after, '.1f')} s.",
     ]
+    if d.groups:
+        lines += ["", f"| {d.by} | cases | before | after | gained | lost |", "|---|---|---|---|---|---|"]
+        for value, g in d.groups.items():
+            lines.append(
+                f"| {value} | {g['cases']:,} | {pct(g['success_before'])} | {pct(g['success_after'])} "
+                f"| {g['gained']} | {g['lost']} |"
+            )
     for title, ids in (("Gained", d.gained), ("Lost", d.lost)):
         if ids and list_cases > 0:
             more = f" (first {list_cases} of {len(ids)})" if len(ids) > list_cases else ""

@@ -61,6 +61,23 @@ def test_gained_and_lost_cases_are_named_with_what_changed():
     assert "**4 of 4 rows differ**" in text and "- `case1`" in text and "- `case2`" in text
 
 
+def test_success_per_value_of_a_case_column():
+    before, after = _rows(), _rows()
+    before["parking_type"] = after["parking_type"] = ["parallel", "parallel", "reverse", "reverse"]
+    after.loc[1, "success"] = True  # parallel gains case1
+    after.loc[2, "success"] = False  # reverse loses case2
+    d = compare(before, after, by="parking_type")
+    assert d.groups == {
+        "parallel": {"cases": 2, "success_before": 0.5, "success_after": 1.0, "gained": 1, "lost": 0},
+        "reverse": {"cases": 2, "success_before": 0.5, "success_after": 0.0, "gained": 0, "lost": 1},
+    }
+    assert "| parallel | 2 | 50.0 % | 100.0 % | 1 | 0 |" in format_diff(d)
+    with pytest.raises(ValueError, match="by: must be one of parking_type"):
+        compare(before, after, by="success")
+    with pytest.raises(ValueError, match="by: the results hold no column 'y0'"):
+        compare(before, after, by="y0")
+
+
 def test_only_common_cases_are_compared():
     d = compare(_rows(n=4), _rows(n=3))
     assert (d.cases, d.only_before, d.only_after, d.same_rows) == (3, 1, 0, 3)
