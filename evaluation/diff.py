@@ -11,7 +11,6 @@ both runs shared one machine at one time (paired).
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -71,16 +70,17 @@ def _one_planner(df: pd.DataFrame, side: str) -> str:
 
 
 def _equal(a: Any, b: Any) -> bool:
-    """Cell equality with NaN == NaN and lists or arrays compared element by element."""
-    if isinstance(a, (list, tuple, np.ndarray)) or isinstance(b, (list, tuple, np.ndarray)):
-        if a is None or b is None:
-            return a is None and b is None
+    """Cell equality: missing equals missing (None, NaN, pd.NA), lists or arrays element by
+    element."""
+    seq = (list, tuple, np.ndarray)
+    if isinstance(a, seq) or isinstance(b, seq):
+        if not (isinstance(a, seq) and isinstance(b, seq)):
+            return False
         a, b = np.asarray(a, dtype=object), np.asarray(b, dtype=object)
         return a.shape == b.shape and all(_equal(x, y) for x, y in zip(a.ravel(), b.ravel()))
-    if a is None or b is None or (isinstance(a, float) and math.isnan(a)) or (isinstance(b, float) and math.isnan(b)):
-        na = a is None or (isinstance(a, float) and math.isnan(a))
-        nb = b is None or (isinstance(b, float) and math.isnan(b))
-        return na and nb
+    missing_a, missing_b = bool(pd.isna(a)), bool(pd.isna(b))
+    if missing_a or missing_b:
+        return missing_a and missing_b
     return bool(a == b)
 
 

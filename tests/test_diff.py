@@ -78,6 +78,13 @@ def test_success_per_value_of_a_case_column():
         compare(before, after, by="y0")
 
 
+def test_missing_values_compare_equal_whatever_their_kind():
+    from evaluation.diff import _equal
+
+    assert _equal(None, float("nan")) and _equal(pd.NA, None) and _equal([1, None], [1, np.nan])
+    assert not _equal(None, 0.0) and not _equal([1, 2], None) and not _equal([1, 2], [1, 2, 3])
+
+
 def test_only_common_cases_are_compared():
     d = compare(_rows(n=4), _rows(n=3))
     assert (d.cases, d.only_before, d.only_after, d.same_rows) == (3, 1, 0, 3)
