@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .metrics import _plan_times, _rate
+from .report import _pct
 from .store import EXPORT_COLUMNS, exported_values
 
 # Measured, not decided: they differ between two runs of the same code.
@@ -84,14 +86,6 @@ def _equal(a: Any, b: Any) -> bool:
     return bool(a == b)
 
 
-def _mean(s: pd.Series) -> float | None:
-    return float(s.mean()) if len(s) else None
-
-
-def _planning_s(df: pd.DataFrame) -> float:
-    return float(sum(sum(t) for t in df["plan_times_ms"] if t is not None and len(t))) / 1e3
-
-
 BY_COLUMNS = ("parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "y0", "feasible")
 
 
@@ -148,14 +142,14 @@ def compare(before: pd.DataFrame, after: pd.DataFrame, by: str | None = None) ->
         collisions_before=int(b["collision"].astype(bool).sum()),
         collisions_after=int(a["collision"].astype(bool).sum()),
         both_parked=int(both.sum()),
-        switches_before=_mean(b.loc[both, "switches"]),
-        switches_after=_mean(a.loc[both, "switches"]),
-        parking_time_before=_mean(b.loc[both, "parking_time_s"]),
-        parking_time_after=_mean(a.loc[both, "parking_time_s"]),
+        switches_before=_rate(b.loc[both, "switches"]),
+        switches_after=_rate(a.loc[both, "switches"]),
+        parking_time_before=_rate(b.loc[both, "parking_time_s"]),
+        parking_time_after=_rate(a.loc[both, "parking_time_s"]),
         calls_before=int(b["planning_calls"].sum()),
         calls_after=int(a["planning_calls"].sum()),
-        planning_s_before=_planning_s(b),
-        planning_s_after=_planning_s(a),
+        planning_s_before=float(_plan_times(b).sum()) / 1e3,
+        planning_s_after=float(_plan_times(a).sum()) / 1e3,
         causes_lost={str(k): int(v) for k, v in causes.items()},
         by=by,
         groups=groups,
@@ -179,11 +173,10 @@ def format_diff(d: RunDiff, list_cases: int = 10) -> str:
     else:
         cols = ", ".join(f"`{c}` {k:,}" for c, k in d.changed_columns.items())
         lines += [f"**{n - d.same_rows:,} of {n:,} rows differ**; by column (cases): {cols}.", ""]
-    pct = lambda v: f"{100 * v:.1f} %"  # noqa: E731
     lines += [
         "| | before | after |",
         "|---|---|---|",
-        f"| success | {pct(d.success_before)} | {pct(d.success_after)} |",
+        f"| success | {_pct(d.success_before)} | {_pct(d.success_after)} |",
         f"| collisions | {d.collisions_before} | {d.collisions_after} |",
         f"| planning calls | {d.calls_before:,} | {d.calls_after:,} |",
         f"| planning time (s; paired runs only) | {d.planning_s_before:.1f} | {d.planning_s_after:.1f} |",
@@ -197,7 +190,7 @@ def format_diff(d: RunDiff, list_cases: int = 10) -> str:
         lines += ["", f"| {d.by} | cases | before | after | gained | lost |", "|---|---|---|---|---|---|"]
         for value, g in d.groups.items():
             lines.append(
-                f"| {value} | {g['cases']:,} | {pct(g['success_before'])} | {pct(g['success_after'])} "
+                f"| {value} | {g['cases']:,} | {_pct(g['success_before'])} | {_pct(g['success_after'])} "
                 f"| {g['gained']} | {g['lost']} |"
             )
     for title, ids in (("Gained", d.gained), ("Lost", d.lost)):
