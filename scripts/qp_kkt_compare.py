@@ -70,12 +70,9 @@ def staged_order(qp: solvers.QP, horizon: int) -> np.ndarray:
 
 
 def solve(qp: solvers.QP, kkt: str, eps: float) -> tuple[float, int, float, float, np.ndarray]:
-    """(objective, iterations, setup s, solve s, x) from a fresh piqp solver."""
-    s = solvers.PIQP.SparseSolver()
-    s.settings.eps_abs, s.settings.eps_rel = eps, 0.1 * eps
-    s.settings.eps_duality_gap_abs, s.settings.eps_duality_gap_rel = eps, 0.1 * eps
-    s.settings.verbose = False
-    s.settings.kkt_solver = getattr(solvers.PIQP, kkt)
+    """(objective, iterations, setup s, solve s, x) from a fresh piqp solver with the
+    planner's settings (``PiqpQP``'s)."""
+    s = solvers.PiqpQP(eps, 0.1 * eps, kkt_solver=kkt, eps_gap=(eps, 0.1 * eps))._new_solver(qp.G.shape[0])
     t0 = time.perf_counter()
     s.setup(qp.P, qp.c, qp.A, qp.b, qp.G, qp.h_l, qp.h_u, qp.x_l, qp.x_u)
     t1 = time.perf_counter()
