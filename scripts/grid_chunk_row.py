@@ -26,6 +26,10 @@ CAUSES = {  # failure cause -> (one case, several)
     "gave_up": ("gives up", "give up"),
     "no_iso_pose": ("admits no ISO pose", "admit no ISO pose"),
     "parked_outside_margin": ("ends outside a margin", "end outside a margin"),
+    "timeout": ("runs out of its 180 s", "run out of their 180 s"),
+    "collision": ("collides", "collide"),
+    "out_of_scene": ("leaves the scene", "leave the scene"),
+    "error": ("raises an error", "raise an error"),
 }
 
 
