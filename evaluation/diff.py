@@ -61,7 +61,15 @@ class RunDiff:
         return d
 
 
+NEEDED = ("success", "collision", "failure_cause", "switches", "parking_time_s", "planning_calls")
+
+
 def _one_planner(df: pd.DataFrame, side: str) -> str:
+    """The side's planner, after checking it is one planner's rows, each case once, with
+    the columns the comparison reads."""
+    missing = [c for c in NEEDED if c not in df.columns]
+    if missing:
+        raise ValueError(f"{side}: the results lack the column(s) {', '.join(missing)}")
     names = sorted(df["planner"].dropna().unique())
     if len(names) != 1:
         raise ValueError(f"{side}: expected the rows of one planner, got {len(names)} ({', '.join(names) or 'none'})")

@@ -97,6 +97,8 @@ def test_bad_inputs_are_rejected_with_the_side_named():
     twice = pd.concat([_rows(), _rows().iloc[:1]], ignore_index=True)
     with pytest.raises(ValueError, match="after: case 'case0' appears more than once"):
         compare(_rows(), twice)
+    with pytest.raises(ValueError, match="after: the results lack the column.s. switches"):
+        compare(_rows(), _rows().drop(columns="switches"))
     other = _rows()
     other["case_id"] = other["case_id"] + "x"
     with pytest.raises(ValueError, match="share no case"):
