@@ -248,7 +248,8 @@ def _json_default(o):
 
 
 def read_results(paths: list[str | Path]) -> pd.DataFrame:
-    """Results from folders (journal, parts, results.parquet) or Parquet / JSON-lines files.
+    """Results from run folders (journal, parts, results.parquet), folders of exported tables
+    (``export_table``'s ``*.parquet``, e.g. a grid's chunks), or Parquet / JSON-lines files.
 
     Raises ``ValueError`` naming a path that is missing, of the wrong kind or empty.
     """
@@ -257,7 +258,12 @@ def read_results(paths: list[str | Path]) -> pd.DataFrame:
         if p.is_dir():
             if not any(p.iterdir()):
                 raise ValueError(f"{p}: results folder is empty")
-            df = ResultStore(p, writable=False).table()
+            store = ResultStore(p, writable=False)
+            exported = sorted(p.glob("*.parquet"))
+            if not (store.journal.exists() or store.parts.exists() or store.parquet.exists()) and exported:
+                frames.append(read_results(exported))  # a folder of exported tables
+                continue
+            df = store.table()
         elif not p.exists():
             raise ValueError(f"{p}: no such results folder or file")
         elif p.suffix == ".parquet":

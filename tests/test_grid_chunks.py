@@ -51,3 +51,6 @@ def test_the_export_keeps_the_report_columns_rounded_and_reads_back(tmp_path):
     assert b["M_fl"] == 0.1235 and b["path_length_m"] == 7.123  # margins to 0.1 mm, lengths to 1 mm
     assert list(b["plan_times_ms"]) == [10.0, 3.3]
     assert not math.isnan(b["y0"])
+    export_table(df.assign(case_id=["c", "d"]), tmp_path, "mirror", "4/16")
+    folder = read_results([tmp_path])  # a folder of exported tables reads as all of them
+    assert sorted(folder["case_id"]) == ["a", "b", "c", "d"]
