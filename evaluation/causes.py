@@ -22,6 +22,12 @@ from typing import Any
 CAUSES = ("error", "collision", "out_of_scene", "no_iso_pose", "parked_outside_margin", "timeout", "gave_up")
 
 
+def cause_of(failure_cause: str) -> str:
+    """The cause itself, one of ``CAUSES``, without the criterion ``parked_outside_margin``
+    names after a colon."""
+    return failure_cause.split(":", 1)[0]
+
+
 def failure_cause(
     *,
     success: bool,

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .causes import cause_of
 from .metrics import _plan_times, _rate
 from .report import _pct
 from .store import EXPORT_COLUMNS, exported_values
@@ -121,7 +122,7 @@ def compare(before: pd.DataFrame, after: pd.DataFrame, by: str | None = None) ->
     ok_b, ok_a = b["success"].astype(bool), a["success"].astype(bool)
     both = ok_b & ok_a
     lost = common[ok_b & ~ok_a]
-    causes = a.loc[lost, "failure_cause"].fillna("none").str.split(":").str[0].value_counts()
+    causes = a.loc[lost, "failure_cause"].fillna("none").map(cause_of).value_counts()
     groups: dict[str, dict[str, float | int]] = {}
     if by is not None:
         if by not in b.columns:

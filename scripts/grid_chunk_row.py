@@ -20,6 +20,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from evaluation.causes import cause_of
+
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ROOT / "results" / "grid"
 CAUSES = {  # failure cause -> (one case, several)
@@ -73,7 +75,7 @@ def row(k: int, folder: Path, planner: str, code: str, run: str) -> str:
     gained, lost = int((ok_n & ~ok_o).sum()), int((~ok_n & ok_o).sum())
     same = pct(new.success) == pct(old.success)
     verdict = "as in the committed run" if same else f"against {pct(old.success)} in the committed run"
-    causes = new.failure_cause.dropna().str.split(":").str[0].value_counts()
+    causes = new.failure_cause.dropna().map(cause_of).value_counts()
     said = [f"{c} {CAUSES.get(cause, (cause, cause))[c != 1]}" for cause, c in causes.items()]
     rest = ""
     if said:
