@@ -1,6 +1,6 @@
 """The results/grid/README.md row of one chunk of a grid rerun, against the committed run.
 
-    python scripts/grid_chunk_row.py K --dir results/grid/2818279 --code "2818279 (...)" \
+    python scripts/grid_chunk_row.py K --dir results/grid/<commit> --code "<commit> (...)" \
         --run "2026-12-03 (twentieth session), 2 workers, about 7 min" [--planner mirror] [--insert]
 
 Reads ``DIR/<planner>-chunkKK-of-64.parquet`` and the committed tables of the same chunk
@@ -127,7 +127,7 @@ def insert(k: int, folder: Path, planner: str, text: str) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("chunk", type=int)
-    ap.add_argument("--dir", required=True, help="the rerun's folder, e.g. results/grid/2818279")
+    ap.add_argument("--dir", required=True, help="the rerun's folder, e.g. results/grid/<commit>")
     ap.add_argument("--planner", default="mirror")
     ap.add_argument("--code", required=True, help="the row's code column")
     ap.add_argument("--run", required=True, help="the start of the row's run column: date, session, workers, time")
