@@ -66,10 +66,10 @@ def test_non_convex_polygon_is_rejected():
 
 @pytest.mark.parametrize("sc", SCENES, ids=lambda s: s.parking_type.value)
 def test_compiled_gaps_equal_the_checker_bit_for_bit(sc):
-    """The planners' kernel (``clearance.gaps``) returns exactly the negated
-    ``penetration(...).max(axis=1)`` of the numpy checker: batches with and without an
+    """The planners' kernels return exactly the numpy checker's ``penetration`` (P, K)
+    and (``clearance.gaps``) its negated ``max(axis=1)``: batches with and without an
     overlapping pose (the own-axes stage runs for a whole batch), of every size."""
-    from planners.common.clearance import gaps
+    from planners.common.clearance import gap_kernel, gaps
 
     g = sc.build()
     rng = np.random.default_rng(11)
@@ -80,7 +80,9 @@ def test_compiled_gaps_equal_the_checker_bit_for_bit(sc):
             poses = np.column_stack(
                 [tx + rng.normal(0, spread, n), ty + rng.normal(0, spread, n), rng.uniform(-4, 4, n)]
             )
-            want = -g.checker.penetration(poses[:, 0], poses[:, 1], poses[:, 2]).max(axis=1)
+            pen = g.checker.penetration(poses[:, 0], poses[:, 1], poses[:, 2])
+            np.testing.assert_array_equal(gap_kernel(g.checker).penetration(poses), pen)
+            want = -pen.max(axis=1)
             got = gaps(g.checker, poses)
             np.testing.assert_array_equal(got, want)
             overlapping += int((want < 0).any())

@@ -63,13 +63,11 @@ def _own_axes(ox, oy, c, s, hl, hw, verts, k):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def _gaps(poses, front, rear, hw, normals, pmin, pmax, verts, all_axes=False):  # pragma: no cover - compiled
-    """Gaps (P,) of the footprint at rear-axle poses (P, 3) to obstacles given as (K, V, 2) arrays.
-
-    Mirrors ``FootprintChecker.penetration(...).max(axis=1)`` negated, including its batch
-    rule: the rectangle's own axes are tested for every pair as soon as one pair of the
-    batch is not separated by an obstacle's axes.
-    """
+def _penetration(poses, front, rear, hw, normals, pmin, pmax, verts, all_axes=False):  # pragma: no cover - compiled
+    """Penetration (P, K) of the footprint at rear-axle poses (P, 3) into obstacles given
+    as (K, V, 2) arrays: ``FootprintChecker.penetration``, including its batch rule (the
+    rectangle's own axes are tested for every pair as soon as one pair of the batch is not
+    separated by an obstacle's axes; ``all_axes``: always)."""
     n = poses.shape[0]
     k_n = normals.shape[0]
     co = 0.5 * (front - rear)
@@ -92,16 +90,24 @@ def _gaps(poses, front, rear, hw, normals, pmin, pmax, verts, all_axes=False):  
             ov[p, k] = m
             if m > 0:
                 overlap = True
-    overlap = overlap or all_axes
-    out = np.empty(n)
-    for p in range(n):
+    if overlap or all_axes:
+        for p in range(n):
+            for k in range(k_n):
+                ov[p, k] = min(ov[p, k], _own_axes(oc[p, 0], oc[p, 1], cs[p, 0], cs[p, 1], hl, hw, verts, k))
+    return ov
+
+
+@njit(cache=True, nogil=True)
+def _gaps(poses, front, rear, hw, normals, pmin, pmax, verts, all_axes=False):  # pragma: no cover - compiled
+    """Gaps (P,) of the footprint at rear-axle poses (P, 3): ``_penetration``'s largest
+    value per pose, negated (``FootprintChecker.penetration(...).max(axis=1)``)."""
+    ov = _penetration(poses, front, rear, hw, normals, pmin, pmax, verts, all_axes)
+    out = np.empty(ov.shape[0])
+    for p in range(ov.shape[0]):
         best = -math.inf
-        for k in range(k_n):
-            m = ov[p, k]
-            if overlap:
-                m = min(m, _own_axes(oc[p, 0], oc[p, 1], cs[p, 0], cs[p, 1], hl, hw, verts, k))
-            if m > best:
-                best = m
+        for k in range(ov.shape[1]):
+            if ov[p, k] > best:
+                best = ov[p, k]
         out[p] = -best
     return out
 
@@ -154,3 +160,9 @@ class FastGaps:
         if self.empty:
             return np.full(len(poses), np.inf)
         return _gaps(np.ascontiguousarray(poses, dtype=float), *self.args, all_axes)
+
+    def penetration(self, poses: np.ndarray) -> np.ndarray:
+        """``FootprintChecker.penetration`` at rear-axle poses (P, 3), (P, K), bit for bit."""
+        if self.empty:
+            return np.empty((len(poses), 0))
+        return _penetration(np.ascontiguousarray(poses[:, :3], dtype=float), *self.args, False)

@@ -13,7 +13,7 @@ from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import TruthModel
 
 from ..common.brake import BrakeRollout
-from ..common.clearance import gaps, required_gap
+from ..common.clearance import gap_kernel, gaps, required_gap
 from ..common.tracker import hold_accel
 from .config import MirrorPlannerConfig
 from .frames import XI_A, XI_D, XI_V, real_commands
@@ -47,8 +47,9 @@ class Checks:
 
     # ------------------------------------------------------------- clearance
     def penetration(self, real_half: np.ndarray) -> np.ndarray:
-        """Footprint penetration of every half step into every obstacle, (2N + 1, K)."""
-        return self.g.checker.penetration(real_half[:, 0], real_half[:, 1], real_half[:, 2])
+        """Footprint penetration of every half step into every obstacle, (2N + 1, K): the
+        checker's values bit for bit, from its compiled kernel."""
+        return gap_kernel(self.g.checker).penetration(real_half)
 
     def clearance(self, poses: np.ndarray, margin: float, start: Start) -> np.ndarray | float:
         """Clearance each pose must keep: ``margin``, relieved near a start that is closer
@@ -75,7 +76,7 @@ class Checks:
         self, poses: list[np.ndarray], end: np.ndarray, start: Start, clearance: float = 0.005
     ) -> bool:
         q = np.concatenate(poses)
-        pen = self.g.checker.penetration(q[:, 0], q[:, 1], q[:, 2]).max(axis=1)
+        pen = -gaps(self.g.checker, q)  # the largest penetration per pose
         clear = bool(np.all(pen < -self.clearance(q, clearance, start)))
         return bool(clear and abs(end[XI_V]) < 0.05)
 
