@@ -523,17 +523,24 @@ class CostToGo:
         length, cur = self.step, g
         way = self.way_on(s, col)
         last = out[-1][-1]
+        starts, ends, gears, dists = [], [], [], []
         for q, gr in way[1:]:
             if gr != cur:
                 changes -= 1
                 if changes < 0:
                     break
                 cur = gr
-            length += math.hypot(q[0] - last[0], q[1] - last[1])
+            d = math.hypot(q[0] - last[0], q[1] - last[1])
+            length += d
             if length > max_length + 1e-9:
                 break
-            out.append(_between(last, q, gr, sample_step))
+            starts.append(last)
+            ends.append(q)
+            gears.append(gr)
+            dists.append(d)
             last = q
+        if starts:
+            out.append(_between(np.array(starts), np.array(ends), np.array(gears), np.array(dists), sample_step))
         poses = np.concatenate(out)
         return poses if len(poses) > 1 else None
 
@@ -547,18 +554,46 @@ def _first_gear(chain: np.ndarray) -> float:
     return 1.0 if d[0] * math.cos(chain[0, 2]) + d[1] * math.sin(chain[0, 2]) >= 0 else -1.0
 
 
-def _between(a: np.ndarray, b: np.ndarray, gear: float, sample_step: float) -> np.ndarray:
-    """Poses after ``a`` up to ``b`` along the arc from ``a`` through ``b`` (or the straight
-    line), about ``sample_step`` apart: one move of V's way on, or a tail step, resampled."""
-    d = math.hypot(b[0] - a[0], b[1] - a[1])
-    n = max(1, math.ceil(d / sample_step - 1e-9))
-    dth = float(b[2] - a[2])
-    if abs(dth) < 1e-9 or d < 1e-12:
-        t = np.arange(1, n + 1) / n
-        return np.stack([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), np.full(n, b[2])], axis=1)
-    s = gear * d * (0.5 * dth) / math.sin(0.5 * dth) if abs(math.sin(0.5 * dth)) > 1e-12 else gear * d
-    kappa = dth / s
-    return arc(a, kappa, s * np.arange(1, n + 1) / n)
+@njit(cache=True, nogil=True)
+def _between(a, b, gear, d, sample_step):  # pragma: no cover - compiled
+    """Poses after each ``a[m]`` up to ``b[m]`` (rows (x, y, theta)), end to end, along the
+    arc from ``a[m]`` through ``b[m]`` (or the straight line) in gear ``gear[m]``, about
+    ``sample_step`` apart; ``d[m]``: the distance from a[m] to b[m]. The moves of V's way
+    on, or tail steps, resampled: ``common.path.arc``'s arithmetic, compiled (a test
+    compares it with the numpy form bit for bit)."""
+    counts = np.empty(len(d), np.int64)
+    for m in range(len(d)):
+        counts[m] = max(1, math.ceil(d[m] / sample_step - 1e-9))
+    out = np.empty((counts.sum(), 3))
+    r = 0
+    for m in range(len(d)):
+        n = counts[m]
+        x0, y0, th0 = a[m, 0], a[m, 1], a[m, 2]
+        dth = b[m, 2] - th0
+        if abs(dth) < 1e-9 or d[m] < 1e-12:
+            for i in range(1, n + 1):
+                t = i / n
+                out[r, 0] = x0 + t * (b[m, 0] - x0)
+                out[r, 1] = y0 + t * (b[m, 1] - y0)
+                out[r, 2] = b[m, 2]
+                r += 1
+            continue
+        sh = math.sin(0.5 * dth)
+        s = gear[m] * d[m] * (0.5 * dth) / sh if abs(sh) > 1e-12 else gear[m] * d[m]
+        kappa = dth / s
+        s0, c0 = math.sin(th0), math.cos(th0)
+        for i in range(1, n + 1):
+            si = s * i / n
+            th = th0 + kappa * si
+            if kappa != 0.0:
+                out[r, 0] = x0 + (math.sin(th) - s0) / kappa
+                out[r, 1] = y0 - (math.cos(th) - c0) / kappa
+            else:
+                out[r, 0] = x0 + si * c0
+                out[r, 1] = y0 + si * s0
+            out[r, 2] = th
+            r += 1
+    return out
 
 
 _CACHE: SlotCache[CostToGo] = SlotCache(8)
