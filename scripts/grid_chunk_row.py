@@ -115,12 +115,12 @@ def insert(k: int, folder: Path, planner: str, text: str) -> None:
     prev = [i for i, line in enumerate(lines) if line.startswith(mine(k - 1))]
     if len(prev) != 1:
         raise ValueError(f"results/grid/README.md: expected one row of chunk {k - 1} of {tag}, found {len(prev)}")
-    lines.insert(prev[0] + 1, text)
-    readme.write_text("\n".join(lines))
     doc = ROOT / "docs" / "evaluation.md"
     s = doc.read_text()
-    if f"chunks 1 to {k - 1} of 64" not in s:
+    if f"chunks 1 to {k - 1} of 64" not in s:  # checked before either file is written
         raise ValueError(f"docs/evaluation.md does not say 'chunks 1 to {k - 1} of 64'")
+    lines.insert(prev[0] + 1, text)
+    readme.write_text("\n".join(lines))
     doc.write_text(s.replace(f"chunks 1 to {k - 1} of 64", f"chunks 1 to {k} of 64"))
 
 
