@@ -21,6 +21,7 @@ from mirrorpark_env.vehicle import TruthModel, VehicleState
 
 from ..common.path import Path
 from ..common.tracker import PathTracker, TrackerConfig
+from ..common.tracker_kernel import TrackedRollout
 from .config import MirrorPlannerConfig
 from .frames import XI_TH, XI_Y
 from .guide import Guide
@@ -38,6 +39,7 @@ class GuidedSeed:
         self.p, self.N, self.coarse = geometry.vehicle, cfg.horizon, coarse
         self.target = np.array(geometry.target, float)
         self.tracker_cfg = TrackerConfig(cruise_speed=cfg.seed_speed, accel=cfg.seed_accel, decel=cfg.seed_accel)
+        self._rollout = TrackedRollout(coarse)
 
     def seed(
         self, xi0: np.ndarray, guide: Guide, speed: float | None = None
@@ -72,17 +74,8 @@ class GuidedSeed:
             cfg = TrackerConfig(
                 **{**cfg.model_dump(), "cruise_speed": speed, "accel": cfg.accel * scale, "decel": cfg.decel * scale}
             )
-        tracker = PathTracker(path, self.p, cfg)
-        state = tuple(float(v) for v in xi0[:6])
-        out, segs, reached = [(*state, 0.0)], [0], [0]
-        command, step = tracker.command_at, self.coarse.step_rows
-        for _ in range(self.N):
-            sub = step(state, *command(*state))
-            out += sub
-            state = sub[-1][:6]
-            segs.append(-1 if tracker.done else tracker.seg)
-            reached.append(tracker.j)
-        return np.array(out)[:, :6], segs, reached
+        real, segs, reached = self._rollout(PathTracker(path, self.p, cfg), xi0, self.N)  # compiled
+        return real, segs.tolist(), reached.tolist()
 
 
 class ShapeSeeds:
