@@ -717,3 +717,68 @@ def test_the_compiled_seed_rollouts_repeat_the_numpy_loop_bit_for_bit():
             want[:, 1 + i * coarse.n : 1 + (i + 1) * coarse.n] = sub
             state = sub[:, -1]
         assert np.array_equal(roll(xi0, v_ref, th_ref), want)
+
+
+def _python_references(pairs, N, dt, to_switch, to_target, d2, tth, th0, line_psi, fixed, parallel, first_dir):
+    """``ShapeSeeds.seeds``' references as the Python loop computed them before they were
+    compiled (``seed_kernel._references``)."""
+    import math
+
+    psi = line_psi if fixed else 0.0
+    v_ref, th_ref = np.empty((len(pairs), N)), np.empty((len(pairs), N))
+    for k, (direction, switch, swing) in enumerate(pairs):
+        s = switch if switch is not None else N
+        d1 = to_switch if switch is not None else to_target
+        T1, T2 = max(s, 1) * dt, max(N - s, 1) * dt
+        vc1 = min(1.5, d1 * math.pi / (2 * T1))
+        vc2 = min(1.5, d2 * math.pi / (2 * T2))
+        first = direction == first_dir
+        for i in range(N):
+            seg1 = switch is None or i < s
+            tau = (i + 1) / s if seg1 else (i + 1 - s) / max(N - s, 1)
+            d = direction if seg1 else -direction
+            v_ref[k, i] = d * (vc1 if seg1 else vc2) * math.sin(math.pi * min(tau, 1.0))
+            if switch is None or (seg1 and swing == math.inf):
+                th = tth
+            elif seg1 and swing is not None:
+                th = th0 + swing * math.sin(0.5 * math.pi * min(tau, 1.0))
+            elif seg1:
+                if parallel and first:
+                    th = tth + 0.7 * math.sin(math.pi * tau) + psi * tau
+                elif first:
+                    th = th0 + (tth - line_psi - th0) * tau
+                else:
+                    th = th0
+            else:
+                th = tth + psi * (1 - tau) if first and fixed else tth
+            th_ref[k, i] = th
+    return v_ref, th_ref
+
+
+def test_the_compiled_seed_references_repeat_the_python_loop_bit_for_bit():
+    """The multi-start seeds' speed and heading references (``seed_kernel._references``):
+    every kind of seed (no switch, a switch with no swing, a 3-point turn, a swing), both
+    directions, fixed and open mirror lines, parallel or not, to the last bit."""
+    import math
+
+    from planners.mirror.seed_kernel import _references
+
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        N = int(rng.integers(10, 90))
+        pairs = []
+        for _ in range(int(rng.integers(1, 14))):
+            switch = None if rng.random() < 0.25 else int(rng.integers(1, N))
+            swing = rng.choice([None, math.inf, float(rng.uniform(-1.2, 1.2))])
+            pairs.append((int(rng.choice([-1, 1])), switch, swing))
+        args = (N, float(rng.choice([0.1, 0.05])), *rng.uniform(0.2, 12, 3), *rng.uniform(-4, 4, 3))
+        flags = (bool(rng.random() < 0.5), bool(rng.random() < 0.5), int(rng.choice([-1, 1])))
+        want = _python_references(pairs, *args, *flags)
+        got = _references(
+            np.array([p[0] for p in pairs], np.int64),
+            np.array([-1 if p[1] is None else p[1] for p in pairs], np.int64),
+            np.array([math.nan if p[2] is None else p[2] for p in pairs], float),
+            *args,
+            *flags,
+        )
+        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])

@@ -1,10 +1,12 @@
-"""The multi-start seeds' closed-loop rollouts, compiled (numba).
+"""The multi-start seeds' references and closed-loop rollouts, compiled (numba).
 
 ``ShapeSeeds.seeds`` drives K seeds at once for N control steps: a speed and heading
 controller on each seed's references, then one ``TruthModel.step_batch`` on the planning
-model. On numpy arrays of a few dozen rows each step was mostly call overhead. This kernel
-runs the same operations in the same order, seed by seed (tests/test_mirror_planner.py
-compares its rollouts with the numpy loop bit for bit), so no seed, and no plan, changes.
+model. On numpy arrays of a few dozen rows each step was mostly call overhead, and the
+references, element by element in Python, cost about as much. These kernels run the same
+operations in the same order, seed by seed (tests/test_mirror_planner.py compares the
+references with the Python loop and the rollouts with the numpy loop, bit for bit), so no
+seed, and no plan, changes.
 """
 
 from __future__ import annotations
@@ -59,6 +61,61 @@ def _rollouts(xi0, v_ref, th_ref, lags, consts):  # pragma: no cover - compiled
             a = out[k, m - 1, 4]
             d = out[k, m - 1, 5]
     return out
+
+
+@njit(cache=True, nogil=True)
+def _references(
+    dirs, switches, swings, N, dt, to_switch, to_target, d2, tth, th0, line_psi, fixed, parallel, first_dir
+):  # pragma: no cover
+    """(v_ref, th_ref), each (K, N): ``ShapeSeeds.seeds``' speed and heading references of K
+    seeds, given each seed's direction, switch step (-1: none) and swing (NaN: none; inf:
+    ``TURN``), in the operations and order of the Python loop they replaced (a test
+    compares them bit for bit).
+
+    Speed: a sine over each segment, sized to the distance it covers. Heading: for parallel
+    parking an S-curve reversing to the mirror line then forward to the target heading; for
+    reverse and angle parking forward toward the switch heading, then full lock back; with
+    a swing, a heading excursion before the switch; with ``TURN``, toward the target
+    heading in both segments (a 3-point turn)."""
+    K = dirs.shape[0]
+    v_ref = np.empty((K, N))
+    th_ref = np.empty((K, N))
+    psi = line_psi if fixed else 0.0
+    for k in range(K):
+        direction, sw, swing = dirs[k], switches[k], swings[k]
+        has_switch = sw >= 0
+        s = sw if has_switch else N
+        d1 = to_switch if has_switch else to_target
+        T1 = max(s, 1) * dt
+        T2 = max(N - s, 1) * dt
+        vc1 = min(1.5, d1 * math.pi / (2 * T1))
+        vc2 = min(1.5, d2 * math.pi / (2 * T2))
+        first = direction == first_dir
+        for i in range(N):
+            seg1 = (not has_switch) or i < s
+            tau = (i + 1) / s if seg1 else (i + 1 - s) / max(N - s, 1)
+            d = direction if seg1 else -direction
+            v_ref[k, i] = d * (vc1 if seg1 else vc2) * math.sin(math.pi * min(tau, 1.0))
+            # ShapeSeeds._heading_ref
+            if not has_switch:
+                th = tth
+            elif seg1 and swing == math.inf:
+                th = tth
+            elif seg1 and not math.isnan(swing):
+                th = th0 + swing * math.sin(0.5 * math.pi * min(tau, 1.0))
+            elif seg1:
+                if parallel and first:
+                    th = tth + 0.7 * math.sin(math.pi * tau) + psi * tau
+                elif first:
+                    th = th0 + (tth - line_psi - th0) * tau
+                else:
+                    th = th0
+            elif first and fixed:
+                th = tth + psi * (1 - tau)
+            else:
+                th = tth
+            th_ref[k, i] = th
+    return v_ref, th_ref
 
 
 class SeedRollouts:

@@ -27,7 +27,7 @@ from .frames import XI_TH, XI_Y
 from .guide import Guide
 from .mirror_line import MirrorLine
 from .plans import Candidate
-from .seed_kernel import SeedRollouts
+from .seed_kernel import SeedRollouts, _references
 
 TURN = math.inf  # seed mode: steer toward the target heading in both segments
 
@@ -147,40 +147,21 @@ class ShapeSeeds:
         d2 = float(np.hypot(S_guess[0] - tx, S_guess[1] - ty)) + 0.3
         to_switch = float(np.hypot(*(S_guess - p0))) + 0.3  # first segment's distance with a switch
         to_target = float(np.hypot(tx - p0[0], ty - p0[1]))  # ... and without one
-        # The references of every seed at every step: speed and heading.
-        v_ref, th_ref = np.empty((len(pairs), N)), np.empty((len(pairs), N))
-        for k, (cand, swing) in enumerate(pairs):
-            s = cand.switch if cand.switch is not None else N
-            d1 = to_switch if cand.switch is not None else to_target
-            T1, T2 = max(s, 1) * dt, max(N - s, 1) * dt
-            vc1 = min(1.5, d1 * math.pi / (2 * T1))
-            vc2 = min(1.5, d2 * math.pi / (2 * T2))
-            for i in range(N):
-                seg1 = cand.switch is None or i < s
-                tau = (i + 1) / s if seg1 else (i + 1 - s) / max(N - s, 1)
-                d = cand.direction if seg1 else -cand.direction
-                v_ref[k, i] = d * (vc1 if seg1 else vc2) * math.sin(math.pi * min(tau, 1.0))
-                th_ref[k, i] = self._heading_ref(cand, line, swing, seg1, tau, tth, xi0[XI_TH])
-        # Each seed under a speed controller (3.0 (v_ref - v) - 0.5 a) and a heading one
-        # (2.5 (th_ref - th), sign by gear), on the planning model.
+        # The references of every seed at every step: speed and heading (compiled).
+        v_ref, th_ref = _references(
+            np.array([c.direction for c, _ in pairs], np.int64),
+            np.array([-1 if c.switch is None else c.switch for c, _ in pairs], np.int64),
+            np.array([math.nan if sw is None else sw for _, sw in pairs], float),
+            N,
+            dt,
+            to_switch,
+            to_target,
+            d2,
+            float(tth),
+            float(xi0[XI_TH]),
+            float(line.psi),
+            bool(line.fixed),
+            self.g.parking_type is ParkingType.PARALLEL,
+            int(self.first_direction),
+        )
         return self.rollouts(xi0, v_ref, th_ref)
-
-    def _heading_ref(self, cand, line, swing, seg1: bool, tau: float, tth: float, th0: float) -> float:
-        """Heading to steer toward at phase ``tau`` of a segment: for parallel parking an
-        S-curve reversing to the mirror line then forward to the target heading, for
-        reverse and angle parking forward toward the switch heading, then full lock back."""
-        psi = line.psi if line.fixed else 0.0
-        first = cand.direction == self.first_direction
-        if cand.switch is None:
-            return tth
-        if seg1 and swing == TURN:  # both segments rotate toward the target: a 3-point turn
-            return tth
-        if seg1 and swing is not None:  # multi-start: a heading excursion before the switch
-            return th0 + swing * math.sin(0.5 * math.pi * min(tau, 1.0))
-        if seg1:
-            if self.g.parking_type is ParkingType.PARALLEL and first:
-                return tth + 0.7 * math.sin(math.pi * tau) + psi * tau  # the S-curve's swing
-            if first:
-                return th0 + (tth - line.psi - th0) * tau  # toward the switch heading
-            return th0
-        return tth + psi * (1 - tau) if first and line.fixed else tth
