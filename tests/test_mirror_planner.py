@@ -721,7 +721,7 @@ def test_the_compiled_seed_rollouts_repeat_the_numpy_loop_bit_for_bit():
 
 def _python_references(pairs, N, dt, to_switch, to_target, d2, tth, th0, line_psi, fixed, parallel, first_dir):
     """``ShapeSeeds.seeds``' references as the Python loop computed them before they were
-    compiled (``seed_kernel._references``)."""
+    compiled (``seed_kernel.seed_references``)."""
     import math
 
     psi = line_psi if fixed else 0.0
@@ -756,12 +756,12 @@ def _python_references(pairs, N, dt, to_switch, to_target, d2, tth, th0, line_ps
 
 
 def test_the_compiled_seed_references_repeat_the_python_loop_bit_for_bit():
-    """The multi-start seeds' speed and heading references (``seed_kernel._references``):
+    """The multi-start seeds' speed and heading references (``seed_kernel.seed_references``):
     every kind of seed (no switch, a switch with no swing, a 3-point turn, a swing), both
     directions, fixed and open mirror lines, parallel or not, to the last bit."""
     import math
 
-    from planners.mirror.seed_kernel import _references
+    from planners.mirror.seed_kernel import seed_references
 
     rng = np.random.default_rng(3)
     for _ in range(200):
@@ -774,7 +774,7 @@ def test_the_compiled_seed_references_repeat_the_python_loop_bit_for_bit():
         args = (N, float(rng.choice([0.1, 0.05])), *rng.uniform(0.2, 12, 3), *rng.uniform(-4, 4, 3))
         flags = (bool(rng.random() < 0.5), bool(rng.random() < 0.5), int(rng.choice([-1, 1])))
         want = _python_references(pairs, *args, *flags)
-        got = _references(
+        got = seed_references(
             np.array([p[0] for p in pairs], np.int64),
             np.array([-1 if p[1] is None else p[1] for p in pairs], np.int64),
             np.array([math.nan if p[2] is None else p[2] for p in pairs], float),

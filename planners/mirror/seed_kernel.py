@@ -64,7 +64,7 @@ def _rollouts(xi0, v_ref, th_ref, lags, consts):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def _references(
+def seed_references(
     dirs, switches, swings, N, dt, to_switch, to_target, d2, tth, th0, line_psi, fixed, parallel, first_dir
 ):  # pragma: no cover
     """(v_ref, th_ref), each (K, N): ``ShapeSeeds.seeds``' speed and heading references of K
@@ -96,7 +96,7 @@ def _references(
             tau = (i + 1) / s if seg1 else (i + 1 - s) / max(N - s, 1)
             d = direction if seg1 else -direction
             v_ref[k, i] = d * (vc1 if seg1 else vc2) * math.sin(math.pi * min(tau, 1.0))
-            # ShapeSeeds._heading_ref
+            # the heading reference
             if not has_switch:
                 th = tth
             elif seg1 and swing == math.inf:

@@ -27,7 +27,7 @@ from .frames import XI_TH, XI_Y
 from .guide import Guide
 from .mirror_line import MirrorLine
 from .plans import Candidate
-from .seed_kernel import SeedRollouts, _references
+from .seed_kernel import SeedRollouts, seed_references
 
 TURN = math.inf  # seed mode: steer toward the target heading in both segments
 
@@ -129,7 +129,7 @@ class ShapeSeeds:
         """A real rollout of the manoeuvre's classic shape, to linearise about first.
 
         Speed: a sine over each segment, sized to the distance the segment has to cover.
-        Steering: a heading controller tracking ``_heading_ref``.
+        Steering: a heading controller tracking the heading reference (``seed_references``).
         """
         return self.seeds(xi0, [(cand, swing)], line)[0]
 
@@ -148,7 +148,7 @@ class ShapeSeeds:
         to_switch = float(np.hypot(*(S_guess - p0))) + 0.3  # first segment's distance with a switch
         to_target = float(np.hypot(tx - p0[0], ty - p0[1]))  # ... and without one
         # The references of every seed at every step: speed and heading (compiled).
-        v_ref, th_ref = _references(
+        v_ref, th_ref = seed_references(
             np.array([c.direction for c, _ in pairs], np.int64),
             np.array([-1 if c.switch is None else c.switch for c, _ in pairs], np.int64),
             np.array([math.nan if sw is None else sw for _, sw in pairs], float),
@@ -164,4 +164,6 @@ class ShapeSeeds:
             self.g.parking_type is ParkingType.PARALLEL,
             int(self.first_direction),
         )
+        # Each seed under a speed controller (3.0 (v_ref - v) - 0.5 a) and a heading one
+        # (2.5 (th_ref - th), sign by gear), on the planning model.
         return self.rollouts(xi0, v_ref, th_ref)
