@@ -11,12 +11,12 @@ no verdict changes.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
 from mirrorpark_env.vehicle import TruthModel
+
+from .truth_kernel import truth_step
 
 
 @njit(cache=True, nogil=True)
@@ -24,7 +24,7 @@ def _brake_poses(state, a_cmd, d_cmd, brake_steps, lags, consts, lead, stop):  #
     """Rear-axle poses (m, 3) at every sub-step of one step of (a_cmd, d_cmd) (``lead``;
     else of the brake), then of the brake (steering held) for ``brake_steps`` control steps,
     or until the car stands (``stop``)."""
-    h, inv_l, v_min, v_max, dv_lag, a_min, a_max, max_steer, tau_a = consts
+    a_min, a_max, tau_a = consts[5], consts[6], consts[8]  # TruthModel.step_constants
     n = lags.shape[0]
     out = np.empty(((brake_steps + 1) * n, 3))
     x, y, th, v, a0, d0 = state[0], state[1], state[2], state[3], state[4], state[5]
@@ -35,28 +35,8 @@ def _brake_poses(state, a_cmd, d_cmd, brake_steps, lags, consts, lead, stop):  #
         if step > 0 or not lead:
             a_cmd = max(a_min, min(a_max, -(v / tau_a + a0)))  # tracker.hold_accel
             d_cmd = d0
-        ac = min(max(a_cmd, a_min), a_max)  # TruthModel.clip_commands
-        dc = min(max(d_cmd, -max_steer), max_steer)
-        da = a0 - ac
-        dd = d0 - dc
-        for k in range(n):
-            ea0, edm = lags[k, 0], lags[k, 2]
-            v1 = v + ac * h + da * ea0 * dv_lag
-            v1 = v_min if v1 < v_min else (v_max if v1 > v_max else v1)
-            ds = 0.5 * (v + v1) * h
-            dth = ds * math.tan(dc + dd * edm) * inv_l
-            half = 0.5 * dth
-            chord = ds * math.sin(half) / half if abs(half) > 1e-12 else ds
-            x += chord * math.cos(th + half)
-            y += chord * math.sin(th + half)
-            th += dth
-            v = v1
-            out[m, 0] = x
-            out[m, 1] = y
-            out[m, 2] = th
-            m += 1
-        a0 = ac + da * lags[n - 1, 1]
-        d0 = dc + dd * lags[n - 1, 3]
+        x, y, th, v, a0, d0 = truth_step(x, y, th, v, a0, d0, a_cmd, d_cmd, lags, consts, out, m)
+        m += n
     return out[:m]
 
 

@@ -22,6 +22,7 @@ from numba import njit
 from mirrorpark_env.vehicle import TruthModel
 
 from .tracker import PathTracker
+from .truth_kernel import truth_step
 
 _STEER, _DRIVE, _STOP = 0, 1, 2
 
@@ -67,8 +68,6 @@ def _track(xi0, xs, ys, ths, s_arr, kappa, gears, seg_i0, seg_i1, tc, vc, lags, 
     """
     cruise, accel, decel, preview, gain, steer_tol = tc[0], tc[1], tc[2], tc[3], tc[4], tc[5]
     a_min, a_max, max_steer, wheelbase, tau_a, tau_d = vc[0], vc[1], vc[2], vc[3], vc[4], vc[5]
-    h, inv_l, v_min, v_max, dv_lag = consts[0], consts[1], consts[2], consts[3], consts[4]
-    m_a_min, m_a_max, m_max_steer = consts[5], consts[6], consts[7]
     tau_a2 = tau_a**two
     preview2 = preview**two
     n = lags.shape[0]
@@ -148,31 +147,8 @@ def _track(xi0, xs, ys, ths, s_arr, kappa, gears, seg_i0, seg_i1, tc, vc, lags, 
             acc = gain * (gear * v_ref - v)
             a_cmd = max(a_min, min(a_max, acc))
             break
-        # TruthModel.step_rows(state, a_cmd, d_cmd)
-        a_cmd = min(max(a_cmd, m_a_min), m_a_max)
-        d_cmd = min(max(d_cmd, -m_max_steer), m_max_steer)
-        da = a - a_cmd
-        dd = d - d_cmd
-        for q in range(n):
-            v1 = v + a_cmd * h + da * lags[q, 0] * dv_lag
-            v1 = v_min if v1 < v_min else (v_max if v1 > v_max else v1)
-            ds = 0.5 * (v + v1) * h
-            dth = ds * math.tan(d_cmd + dd * lags[q, 2]) * inv_l
-            half = 0.5 * dth
-            chord = ds * math.sin(half) / half if abs(half) > 1e-12 else ds
-            x = x + chord * math.cos(th + half)
-            y = y + chord * math.sin(th + half)
-            th = th + dth
-            v = v1
-            out[row, 0] = x
-            out[row, 1] = y
-            out[row, 2] = th
-            out[row, 3] = v
-            out[row, 4] = a_cmd + da * lags[q, 1]
-            out[row, 5] = d_cmd + dd * lags[q, 3]
-            row += 1
-        a = out[row - 1, 4]
-        d = out[row - 1, 5]
+        x, y, th, v, a, d = truth_step(x, y, th, v, a, d, a_cmd, d_cmd, lags, consts, out, row)  # step_rows
+        row += n
         segs[step + 1] = -1 if done else seg
         reached[step + 1] = j
     return out, segs, reached
@@ -182,7 +158,7 @@ class TrackedRollout:
     """``PathTracker`` driving one truth model for a number of control steps, compiled."""
 
     def __init__(self, model: TruthModel) -> None:
-        self.lags, self.consts = model.lag_factors(), np.array(model.step_constants())
+        self.lags, self.consts = model.lag_factors(), model.step_constants()
 
     def __call__(self, tracker: PathTracker, state, steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """From ``state`` (x, y, theta, v, a, delta) under a fresh ``tracker`` for ``steps``
