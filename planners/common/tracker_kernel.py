@@ -58,6 +58,12 @@ def _kappa_at(s_arr, kappa, s, i0, i1):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
+def _hold(v, a, delta, a_min, a_max, tau_a, max_steer):  # pragma: no cover - compiled
+    """``PathTracker._hold``: brake to a stand (``hold_accel``) while steering to ``delta``."""
+    return max(a_min, min(a_max, -(v / tau_a + a))), max(-max_steer, min(max_steer, delta))
+
+
+@njit(cache=True, nogil=True)
 def _track(xi0, xs, ys, ths, s_arr, kappa, gears, seg_i0, seg_i1, tc, vc, lags, consts, steps, two):  # pragma: no cover
     """(1 + steps n, 6) sub-step states, and per control step the tracker's segment (-1 once
     done) and the path sample reached, from ``xi0`` under the tracker.
@@ -89,8 +95,7 @@ def _track(xi0, xs, ys, ths, s_arr, kappa, gears, seg_i0, seg_i1, tc, vc, lags, 
         # PathTracker.command_at(x, y, th, v, a, d); a segment's end continues into the next.
         while True:
             if done:
-                a_cmd = max(a_min, min(a_max, -(v / tau_a + a)))
-                d_cmd = max(-max_steer, min(max_steer, d))
+                a_cmd, d_cmd = _hold(v, a, d, a_min, a_max, tau_a, max_steer)
                 break
             i0 = seg_i0[seg]
             i1 = seg_i1[seg]
@@ -102,8 +107,7 @@ def _track(xi0, xs, ys, ths, s_arr, kappa, gears, seg_i0, seg_i1, tc, vc, lags, 
                 if abs(d - delta0) < steer_tol and abs(v) < 0.02:
                     phase = _DRIVE
                 else:
-                    a_cmd = max(a_min, min(a_max, -(v / tau_a + a)))
-                    d_cmd = max(-max_steer, min(max_steer, delta0))
+                    a_cmd, d_cmd = _hold(v, a, delta0, a_min, a_max, tau_a, max_steer)
                     break
             hi = min(i1, j + 40)
             best = (xs[j] - x) ** two + (ys[j] - y) ** two
@@ -136,8 +140,7 @@ def _track(xi0, xs, ys, ths, s_arr, kappa, gears, seg_i0, seg_i1, tc, vc, lags, 
                         j = seg_i0[seg]
                         phase = _STEER
                     continue
-                a_cmd = max(a_min, min(a_max, -(v / tau_a + a)))
-                d_cmd = max(-max_steer, min(max_steer, d))
+                a_cmd, d_cmd = _hold(v, a, d, a_min, a_max, tau_a, max_steer)
                 break
             kappa_ref = _kappa_at(s_arr, kappa, s_now + speed * tau_d + 0.05, i0, i1)
             kap = kappa_ref - e_y / preview2 - gear * 2.0 * e_theta / preview

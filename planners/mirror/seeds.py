@@ -36,7 +36,7 @@ class GuidedSeed:
     """Tracks a guide on the planning model (``coarse``: the truth model at half steps)."""
 
     def __init__(self, geometry: ScenarioGeometry, cfg: MirrorPlannerConfig, coarse: TruthModel):
-        self.p, self.N, self.coarse = geometry.vehicle, cfg.horizon, coarse
+        self.p, self.N = geometry.vehicle, cfg.horizon
         self.target = np.array(geometry.target, float)
         self.tracker_cfg = TrackerConfig(cruise_speed=cfg.seed_speed, accel=cfg.seed_accel, decel=cfg.seed_accel)
         self._rollout = TrackedRollout(coarse)

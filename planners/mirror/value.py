@@ -583,15 +583,7 @@ def _between(a, b, gear, d, sample_step):  # pragma: no cover - compiled
         kappa = dth / s
         s0, c0 = math.sin(th0), math.cos(th0)
         for i in range(1, n + 1):
-            si = s * i / n
-            th = th0 + kappa * si
-            if kappa != 0.0:
-                out[r, 0] = x0 + (math.sin(th) - s0) / kappa
-                out[r, 1] = y0 - (math.cos(th) - c0) / kappa
-            else:
-                out[r, 0] = x0 + si * c0
-                out[r, 1] = y0 + si * s0
-            out[r, 2] = th
+            out[r, 0], out[r, 1], out[r, 2], _, _ = _arc_cs(x0, y0, th0, c0, s0, kappa, s * i / n)
             r += 1
     return out
 
