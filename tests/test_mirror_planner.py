@@ -424,7 +424,8 @@ def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_me
     if scout.status == "solved":
         assert scout.obj == pytest.approx(ref.obj, rel=1e-4, abs=1e-6)
     else:
-        assert scout.status == "node_limit" and (scout.x is None or scout.obj >= ref.obj - 1e-6)
+        # no lower cost than the optimum, to the solver's relative tolerance (1e-4, as above)
+        assert scout.status == "node_limit" and (scout.x is None or scout.obj >= ref.obj - 1e-4 * abs(ref.obj))
 
 
 def test_the_policy_replans_once_the_rest_of_its_plan_would_only_creep():
@@ -473,19 +474,20 @@ def test_giving_up_mid_plan_finishes_the_verified_plan_rather_than_braking_off_i
     np.testing.assert_allclose(action, to_action(policy.params, hold_accel(policy.params, 0.0, -1.0), 0.3))
 
 
-def test_a_tight_parallel_slot_is_shuffled_into_past_seven_plans_without_a_gain():
+def test_a_tight_parallel_slot_is_shuffled_into_past_six_plans_without_a_gain():
     """In a slot of 1.2 car lengths the car shuffles in, and the cost of standing still
-    falls one switch's price every few plans: here seven plans pass without a 1 % gain, so
-    a patience of 6 (the default until 2026-12-03) gave this park up."""
+    falls one switch's price every few plans: here six plans pass without a 1 % gain, so a
+    patience of 6 (the default until 2026-12-03) gives this park up and the default parks."""
+    from planners.mirror.config import MirrorPolicyConfig
+
+    case = "parallel_rw3.50_sl4.62_sw2.50_th+20_y1.60"  # until 2026-12-04: parallel_rw4.00_sl4.62_sw2.50_th+20_y1.60
     policy = MirrorPolicy()
-    info, _ = run_episode(gym.make("MirrorPark-v0"), policy, "parallel_rw4.00_sl4.62_sw2.50_th+20_y1.60")
+    info, _ = run_episode(gym.make("MirrorPark-v0"), policy, case)
     assert info["is_success"] and not info["collision"]
-    best, since, longest = math.inf, 0, 0
-    for s in policy.stats:
-        cost = s.detail["stay_cost"]
-        best, since = (cost, 0) if cost < 0.99 * best else (best, since + 1)
-        longest = max(longest, since)
-    assert 6 < longest < policy.patience
+    assert policy.patience == 8
+    impatient = MirrorPolicy(policy=MirrorPolicyConfig(patience=6))
+    info, _ = run_episode(gym.make("MirrorPark-v0"), impatient, case)
+    assert not info["is_success"] and impatient.status == "gave_up"
 
 
 def test_a_slot_without_an_iso_pose_is_refused_at_once():

@@ -67,6 +67,43 @@ def test_policy_path_starts_in_the_gear_asked_and_changes_gear_as_allowed(revers
             assert np.count_nonzero(along[1:] != along[:-1]) <= changes
 
 
+ANGLE_START = "angle_rw3.50_sl4.82_sw2.92_th+0_y1.70"  # the car starts level, 1.70 m out
+
+
+def test_read_path_follows_the_way_v_prices_at_the_pose_not_one_move_on():
+    """At this start the car's own cell is unreached, and V reads a neighbour's pose 20 cm
+    nearer the slot, whose way on reverses straight in. One reverse move from the car
+    itself lands where the way on turns forward at once. ``read_path`` follows the way V
+    prices; ``policy_path`` the other (both are warm starts of ``mirror``)."""
+    g = Scenario.from_case_id(ANGLE_START).build()
+    V = CostToGo(g, MirrorPlannerConfig().value_lattice)
+    car = np.array([g.start.x, g.start.y, g.start.theta])
+    v, s = V.at(car)
+    col = 0 if V.V[s, 0] <= V.V[s, 1] else 1
+    read = V.P[s, col].astype(float)
+    assert 0.15 < math.hypot(*(read[:2] - car[:2])) < 0.25
+    way = V.read_path(car, 0, max_length=20.0)
+    np.testing.assert_allclose(way[0], read)
+    d = np.diff(way[:, :2], axis=0)
+    assert np.all(d[:, 0] * np.cos(way[:-1, 2]) + d[:, 1] * np.sin(way[:-1, 2]) < 0)  # reverse throughout
+    np.testing.assert_allclose(way[-1], g.target, atol=0.01)  # into the target
+    length = float(np.hypot(*d.T).sum())
+    assert 1.5 * length - 1e-6 <= v <= 1.55 * length  # V prices this way: reversed metres, some at full lock
+    one_move_on = V.policy_path(car, -1, 0, max_length=20.0)
+    assert np.hypot(*np.diff(one_move_on[:, :2], axis=0).T).sum() < 0.5  # then changes gear
+
+
+@pytest.mark.slow
+def test_mirror_parks_from_this_start_with_one_switch():
+    """With the way V prices (above) as a seed, ``mirror`` reverses in at its second call
+    (+0.07 m, then -7.4 m); with ``policy_path``'s seeds alone its second call shuffled and
+    the car took 3 switches (+0.06, -0.36, +0.26, -7.94 m)."""
+    env = gym.make("MirrorPark-v0").unwrapped
+    info, _ = run_episode(env, MirrorPolicy(MirrorPlannerConfig(time_limit_s=600.0)), ANGLE_START)
+    assert info["is_success"] and not info["collision"]
+    assert info["direction_switches"] == 1
+
+
 def test_lookahead_reads_v_through_an_exact_move_where_the_cell_says_too_little():
     # A pose 4.5 cm from a reverse slot's neighbour, where a value-mode plan ended: its cell
     # reads 7.0 m reversing on, but every reverse move from the pose itself collides (the
@@ -175,6 +212,7 @@ def test_mirror_parks_and_executes_the_cheapest_candidate_of_each_call(case_id, 
             raise AssertionError("a path was asked for a warm start")
 
         monkeypatch.setattr(CostToGo, "policy_path", asked)
+        monkeypatch.setattr(CostToGo, "read_path", asked)
         monkeypatch.setattr(MirrorPlanner, "guide_search", asked)
     env = gym.make("MirrorPark-v0").unwrapped
     policy = MirrorPolicy(MirrorPlannerConfig(time_limit_s=600.0, value_warm_start=warm_start))
@@ -211,9 +249,11 @@ def test_mirror_plans_end_settled_so_no_stop_rolls_back_across_zero():
     for settled in (False, True):
         env = gym.make("MirrorPark-v0").unwrapped
         # the value mode's first settings, under which it was measured (finish radius 3 m, 5 deg
-        # cells, scouting on 10 nodes: on 5 the settled run parks with 3 switches, none a roll-back)
+        # cells, scouting on 10 nodes: on 5 the settled run parks with 3 switches, none a roll-back;
+        # no seed along the way V prices at the car, which came later)
         cfg = MirrorPlannerConfig(
             end_settled=settled,
+            value_read_seed=False,
             time_limit_s=600.0,
             value_scout_node_limit=10,
             value_finish_radius=3.0,

@@ -85,6 +85,9 @@ class MirrorPlannerConfig(StrictModel):
     # False: no path warm-starts a candidate (neither V's cheapest way on nor the guide); the
     # classic shapes seed them, as in the multi-start, and V stays the terminal cost (``mirror-cold``).
     value_warm_start: bool = True
+    # Also the way V prices at the car (``CostToGo.read_path``) as a warm start, beside V's
+    # way on after one exact move (added on 2026-12-04; False: the default before it).
+    value_read_seed: bool = True
 
 
 def cold_config(**changes) -> MirrorPlannerConfig:
