@@ -30,7 +30,7 @@ from .figures import _plt
 # switch only at their ends, where the mirror has nothing to show): Fig. 19-like manoeuvres.
 DEMO_CASES = {
     "parallel": Scenario.from_case_id("parallel_rw3.50_sl6.82_sw2.50_th+0_y1.50"),
-    "reverse": Scenario.from_case_id("reverse_rw7.00_sl4.82_sw3.07_th+0_y5.20"),
+    "reverse": Scenario.from_case_id("reverse_rw7.00_sl4.82_sw2.72_th+0_y5.50"),
     "angle": Scenario.from_case_id("angle_rw4.50_sl4.82_sw1.92_th+10_y1.80"),
 }
 
