@@ -79,8 +79,7 @@ def test_read_path_follows_the_way_v_prices_at_the_pose_not_one_move_on():
     V = CostToGo(g, MirrorPlannerConfig().value_lattice)
     car = np.array([g.start.x, g.start.y, g.start.theta])
     v, s = V.at(car)
-    col = 0 if V.V[s, 0] <= V.V[s, 1] else 1
-    read = V.P[s, col].astype(float)
+    read = V.P[s, V._col(s, None)].astype(float)
     assert 0.15 < math.hypot(*(read[:2] - car[:2])) < 0.25
     way = V.read_path(car, 0, max_length=20.0)
     np.testing.assert_allclose(way[0], read)

@@ -535,7 +535,7 @@ class CostToGo:
         v, s = self.at(pose, None)
         if not math.isfinite(v):
             return None
-        way = self.way_on(s, 0 if self.V[s, 0] <= self.V[s, 1] else 1)
+        way = self.way_on(s, self._col(s, None))
         if len(way) < 2:
             return None
         poses = self._follow(way[0][0][None], way[1:], way[1][1], changes, 0.0, max_length, sample_step)
