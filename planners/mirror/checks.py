@@ -19,6 +19,7 @@ from .config import MirrorPlannerConfig
 from .frames import XI_A, XI_D, XI_V, real_commands
 from .mirror_line import MirrorLine
 from .plans import Candidate, Plan
+from .window import Terminal, end_cost, terminal_for
 
 BRAKE_STEPS = 30  # control steps of the brake checked after a plan (3 s: then under 1 mm/s)
 
@@ -41,6 +42,12 @@ class Checks:
         self.N = cfg.horizon
         self.truth = TruthModel(self.p, cfg.dt, 0.01)
         self.brake = BrakeRollout(self.truth)  # compiled: common/brake.py
+        self.terminal = terminal_for(geometry, cfg)  # the target's terminal cost (None: one weight)
+
+    def terminal_toward(self, goal) -> Terminal | None:
+        """The end's position cost toward ``goal``: the target's (``window.py``) where
+        ``goal`` is the target, else one weight (None)."""
+        return self.terminal if self.terminal is not None and same_pose(goal, self.g.target) else None
 
     def start(self, xi0: np.ndarray) -> Start:
         return Start(float(xi0[0]), float(xi0[1]), float(gaps(self.g.checker, xi0[None, :3])[0]))
@@ -102,6 +109,11 @@ class Checks:
         pos_err = float(np.hypot(real[-1, 0] - tx, real[-1, 1] - ty))
         th_err = float(abs(real[-1, 2] - theta_t))
         run = float((np.hypot(real[1:, 0] - tx, real[1:, 1] - ty) ** 2).sum()) * cfg.w_position * cfg.dt
+        term = self.terminal_toward(goal)
+        if term is not None:  # along and across the target's heading, as the QP weighs them
+            d = real[-1, :3] - (tx, ty, theta_t)
+            end = end_cost(term, cfg.w_terminal_position, float(d[0]), float(d[1]), float(d[2]))
+            return end + cfg.w_terminal_heading * th_err**2 + run, pos_err, th_err
         return cfg.w_terminal_position * pos_err**2 + cfg.w_terminal_heading * th_err**2 + run, pos_err, th_err
 
     def merit(self, real_half: np.ndarray, goal: np.ndarray, theta_t: float, pen: np.ndarray | None = None) -> float:

@@ -278,7 +278,8 @@ class MirrorPlanner:
         """
         cfg = self.cfg
         theta_t = unwrap_near(goal[2], xi0[XI_TH])
-        c = self.qp.cost(cand, goal, theta_t)
+        terminal = self.checks.terminal_toward(goal)
+        c = self.qp.cost(cand, goal, theta_t, terminal)
         theta_set: dict[tuple[int, int], None] = {}  # (step, obstacle) pairs with obstacle rows
         clear_plans: list[Plan] = []  # clear on the planning model; verified on the truth model at the end
         st = {"iterations": 0, "qp_solves": 0, "nodes": 0, "status": "failed"}
@@ -317,6 +318,7 @@ class MirrorPlanner:
                 mirror=mirror,
                 trust_scale=trust_scale,
                 band=rows,
+                terminal=terminal,
             )
             x = self._solve(qp, disj, active, preferred, st, miqp or self.miqp)
             if x is None:

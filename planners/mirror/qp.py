@@ -8,6 +8,7 @@ switch link) per switch step. Only the obstacle rows are assembled anew each rou
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
@@ -23,6 +24,7 @@ from .model import NU, NX
 from .obstacles import ObstacleRows, Rows
 from .plans import Candidate
 from .solvers import INACTIVE, QP, CscPattern, Disjunction
+from .window import Terminal, terminal_error
 
 
 class MirrorQP:
@@ -40,25 +42,32 @@ class MirrorQP:
         self._eq_patterns: dict[int, CscPattern] = {}  # per switch-link step
         self._g_switch: dict[int, CscPattern] = {}  # G of a QP without obstacle rows, per switch step
         self._bounds: dict[tuple[int, int | None], tuple[np.ndarray, np.ndarray]] = {}
-        self._costs: dict[int | None, tuple] = {}  # this planner's view of ``cost_pattern``
+        self._costs: dict[tuple, tuple] = {}  # this planner's view of ``cost_pattern``
 
     # ------------------------------------------------------------------ cost
-    def cost(self, cand: Candidate, goal: np.ndarray, theta_t: float) -> np.ndarray:
+    def cost(self, cand: Candidate, goal: np.ndarray, theta_t: float, terminal: Terminal | None = None) -> np.ndarray:
         """c of sum w * residual^2 toward ``goal`` (the real target or a guide's pose),
-        mirrored through S after the switch (piqp: 1/2 z'Pz + c'z)."""
-        L, w, kinds, _ = self._cost_entry(cand.switch)
+        mirrored through S after the switch (piqp: 1/2 z'Pz + c'z). ``terminal``: the end's
+        position cost in the target's frame (``window.py``); None: one weight."""
+        L, w, kinds, _ = self._cost_entry(cand.switch, terminal)
         kappa = 1.0 if cand.switch is not None else 0.0
         tx, ty, _ = goal
         k0 = np.zeros(len(w))  # residual = p_i - 2 kappa S - (1 - 2 kappa) goal
         k0[kinds == 1] = -(1 - 2 * kappa) * tx
         k0[kinds == 2] = -(1 - 2 * kappa) * ty
         k0[kinds == 3] = -theta_t
+        if terminal is not None:  # the end along the target's heading; its front and rear across it
+            along, across = terminal_error(terminal, tx, ty)
+            k0[kinds == 4] = -(1 - 2 * kappa) * along
+            k0[kinds == 5] = -across - terminal.front * theta_t
+            k0[kinds == 6] = -across + terminal.rear * theta_t
         return 2.0 * (L.T @ (w * k0))
 
-    def _cost_entry(self, s: int | None) -> tuple:
-        if s not in self._costs:
-            self._costs[s] = cost_pattern(self.cfg, s)
-        return self._costs[s]
+    def _cost_entry(self, s: int | None, terminal: Terminal | None = None) -> tuple:
+        key = (s, terminal)
+        if key not in self._costs:
+            self._costs[key] = cost_pattern(self.cfg, s, terminal)
+        return self._costs[key]
 
     # ----------------------------------------------------------------- build
     def build(
@@ -74,11 +83,12 @@ class MirrorQP:
         mirror: bool = True,
         trust_scale: float = 1.0,
         band: SwitchBand | None = None,
+        terminal: Terminal | None = None,
     ) -> tuple[QP, list[Disjunction], np.ndarray, list[int]]:
         """(QP, disjunctions, each row's enforced lower bound, preferred rows) of one round.
 
         The switch rows: ``band`` where given (with a switch), else the fixed ``line``
-        where ``mirror`` is on; neither: inactive."""
+        where ``mirror`` is on; neither: inactive. ``terminal``: as ``c`` was built."""
         cfg = self.cfg
         s = cand.switch
         vals, b = self._equalities(xi0, cand, lin)
@@ -97,7 +107,7 @@ class MirrorQP:
         n_s = len(rows.h_l)
         nz = self.nz + n_s
         G = self._inequalities(rows, n_s, nz)
-        pattern, p_vals, t_vals = self._cost_entry(s)[3]
+        pattern, p_vals, t_vals = self._cost_entry(s, terminal)[3]
         P = pattern.matrix(p_vals + (trust_scale if trust else 0.0) * t_vals, (nz, nz))
         A = self._eq_pattern(s).matrix(vals, (self._n_dyn_rows + 2, nz))
         c = np.concatenate([c, np.full(n_s, cfg.w_slack)])
@@ -228,9 +238,11 @@ def _dynamics_pattern(N: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 @lru_cache(maxsize=256)
-def cost_pattern(cfg: MirrorPlannerConfig, s: int | None):
+def cost_pattern(cfg: MirrorPlannerConfig, s: int | None, terminal: Terminal | None = None):
     """(L, w, residual kinds, (P's pattern with the trust penalty, P's values, trust's
-    values)) for switch step ``s``; built once per config and shared by episodes."""
+    values)) for switch step ``s``; built once per config (and ``terminal``) and shared by
+    episodes. Kinds: 1, 2, 3 x, y, heading toward the goal; 4 the end's position along
+    ``terminal``'s heading, 5, 6 its front and rear across it; 0 no goal."""
     N = cfg.horizon
     iS = switch_index(N)
     nz = iS + 2
@@ -248,8 +260,28 @@ def cost_pattern(cfg: MirrorPlannerConfig, s: int | None):
     for i in range(1, N + 1):
         wp = cfg.w_terminal_position if i == N else cfg.w_position * cfg.dt
         wh = cfg.w_terminal_heading if i == N else cfg.w_heading * cfg.dt
-        for j, kind in ((XI_X, 1), (XI_Y, 2)):
-            add([(ix(i, j), 1.0), (iS + j, -2.0 * kappa)], kind, wp)
+        if i == N and terminal is not None:
+            c, sn = math.cos(terminal.heading), math.sin(terminal.heading)
+            add([(ix(i, XI_X), c), (ix(i, XI_Y), sn), (iS, -2.0 * kappa * c), (iS + 1, -2.0 * kappa * sn)], 4, wp)
+            # The body's front and rear ends across the target's heading, real frame (real =
+            # 2 S - planned after the switch; the heading is not reflected), linearised in
+            # the heading: the real rear axle's offset + arm * heading error.
+            flip, shift = 1.0 - 2.0 * kappa, 2.0 * kappa
+            for arm, kind in ((terminal.front, 5), (-terminal.rear, 6)):
+                add(
+                    [
+                        (ix(i, XI_X), -flip * sn),
+                        (ix(i, XI_Y), flip * c),
+                        (iS, -shift * sn),
+                        (iS + 1, shift * c),
+                        (ix(i, XI_TH), arm),
+                    ],
+                    kind,
+                    0.5 * terminal.w_lateral,
+                )
+        else:
+            for j, kind in ((XI_X, 1), (XI_Y, 2)):
+                add([(ix(i, j), 1.0), (iS + j, -2.0 * kappa)], kind, wp)
         add([(ix(i, XI_TH), 1.0)], 3, wh)
     add([(ix(N, XI_A), 1.0)], 0, cfg.w_terminal_accel)
     for i in range(N):
