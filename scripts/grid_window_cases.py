@@ -1,0 +1,41 @@
+"""The full grid's cases whose plans the terminal weight across the slot changes.
+
+``mirror`` weighs the end across the target's heading more in slots whose ISO window across
+is narrower than ``MirrorPlannerConfig.lateral_window`` (``planners/mirror/window.py``);
+every other case plans as before, to the last bit. This writes the cases it changes as a
+CSV for ``mirrorpark evaluate --cases``, so that a rerun of the grid after such a change
+runs only those. Run: ``python scripts/grid_window_cases.py OUT.csv [LATERAL_WINDOW]``.
+"""
+
+from __future__ import annotations
+
+import csv
+import sys
+
+from evaluation.cases import from_sample
+from planners.mirror.config import MirrorPlannerConfig
+from planners.mirror.window import terminal_for
+
+FIELDS = ("parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "y0")
+
+
+def main(out: str, window: float | None = None) -> None:
+    cfg = MirrorPlannerConfig() if window is None else MirrorPlannerConfig(lateral_window=window)
+    changed: dict[tuple, bool] = {}
+    rows = []
+    for sc in from_sample("full"):
+        key = (sc.parking_type.value, sc.road_width, sc.slot_length, sc.slot_width)
+        if key not in changed:
+            changed[key] = terminal_for(sc.build(), cfg) is not None
+        if changed[key]:
+            rows.append((sc.parking_type.value, sc.road_width, sc.slot_length, sc.slot_width, sc.theta0_deg, sc.y0))
+    with open(out, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(FIELDS)
+        w.writerows(rows)
+    slots = sorted({(k[0], k[3]) for k, v in changed.items() if v})
+    print(f"{len(rows)} cases in {sum(changed.values())} of {len(changed)} slots (type, width): {slots}; written to {out}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], float(sys.argv[2]) if len(sys.argv) > 2 else None)
