@@ -34,7 +34,8 @@ def main(out: str, window: float | None = None) -> None:
         w.writerow(FIELDS)
         w.writerows(rows)
     slots = sorted({(k[0], k[3]) for k, v in changed.items() if v})
-    print(f"{len(rows)} cases in {sum(changed.values())} of {len(changed)} slots (type, width): {slots}; written to {out}")
+    n_slots = sum(changed.values())
+    print(f"{len(rows)} cases in {n_slots} of {len(changed)} slots (type, width): {slots}; written to {out}")
 
 
 if __name__ == "__main__":

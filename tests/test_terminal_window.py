@@ -12,7 +12,7 @@ import pytest
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario
 from planners.base import run_episode
-from planners.mirror.config import MirrorPlannerConfig
+from planners.mirror.config import MirrorPlannerConfig, cold_config, guided_config, multistart_config, paper_config
 from planners.mirror.frames import XI_TH, XI_X, XI_Y
 from planners.mirror.layout import ix
 from planners.mirror.planner import MirrorPlanner
@@ -44,8 +44,12 @@ def test_the_weight_across_grows_in_narrow_windows_only():
     assert tight.w_lateral == pytest.approx(cfg.w_terminal_position * (cfg.lateral_window / 0.025) ** 2)
     for case in ("angle_rw3.50_sl4.82_sw2.12_th+0_y2.40", "angle_rw3.50_sl4.82_sw1.87_th+0_y2.40"):
         assert terminal_for(Scenario.from_case_id(case).build(), cfg) is None  # wide; no pose passes
-    off = MirrorPlannerConfig(lateral_window=0.0)
-    assert terminal_for(Scenario.from_case_id("angle_rw3.50_sl4.82_sw1.92_th+0_y2.40").build(), off) is None
+    g = Scenario.from_case_id("angle_rw3.50_sl4.82_sw1.92_th+0_y2.40").build()
+    assert terminal_for(g, MirrorPlannerConfig(lateral_window=0.0)) is None
+    # The former default and the paper's method keep Eq. (33)'s one weight; mirror-cold shares the default's.
+    for keeps_one in (guided_config(), multistart_config(), paper_config()):
+        assert terminal_for(g, keeps_one) is None
+    assert terminal_for(g, cold_config()) == tight
 
 
 @pytest.mark.parametrize("switch", [None, 25])

@@ -114,6 +114,7 @@ def guided_config(**changes) -> MirrorPlannerConfig:
         settle_heading=0.02,
         value_finish_radius=3.0,
         value_lattice=ValueConfig(),
+        lateral_window=0.0,  # one terminal weight, as before 5ce4cc2 (and as Eq. 33 for mirror-paper)
     )
     return MirrorPlannerConfig(**{**base, **changes})
 
