@@ -20,7 +20,7 @@ def main(rerun: str, planner: str = "mirror", folder: str = "results/grid") -> N
     if new.case_id.duplicated().any():
         raise SystemExit(f"{rerun}: a case appears twice")
     new = new.set_index("case_id", drop=False)
-    placed = 0
+    changed = []  # (path, table, rows replaced): written only once every rerun case is placed
     for path in sorted(glob.glob(f"{folder}/{planner}-chunk*.parquet")):
         old = pd.read_parquet(path)
         hit = old.case_id.isin(new.index)
@@ -31,11 +31,13 @@ def main(rerun: str, planner: str = "mirror", folder: str = "results/grid") -> N
         rows = new.loc[old.case_id[hit]]
         out = old.copy()
         out.loc[hit] = rows.set_index(old.index[hit]).astype(old.dtypes.to_dict())
-        out.to_parquet(path, index=False)
-        placed += int(hit.sum())
-        print(f"{path}: {int(hit.sum())} of {len(old)} rows replaced")
+        changed.append((path, out, int(hit.sum())))
+    placed = sum(n for _, _, n in changed)
     if placed != len(new):
-        raise SystemExit(f"only {placed} of {len(new)} rerun cases are in {folder}'s {planner} tables")
+        raise SystemExit(f"only {placed} of {len(new)} rerun cases are in {folder}'s {planner} tables; nothing written")
+    for path, out, n in changed:
+        out.to_parquet(path, index=False)
+        print(f"{path}: {n} of {len(out)} rows replaced")
     print(f"{placed} rows replaced")
 
 
