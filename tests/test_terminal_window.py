@@ -41,7 +41,7 @@ def test_the_weight_across_grows_in_narrow_windows_only():
     cfg = MirrorPlannerConfig()
     tight = terminal_for(Scenario.from_case_id("angle_rw3.50_sl4.82_sw1.92_th+0_y2.40").build(), cfg)
     assert tight.heading == pytest.approx(math.pi / 4)
-    assert tight.w_lateral == pytest.approx(cfg.w_terminal_position * (cfg.lateral_reference / 0.025) ** 2)
+    assert tight.w_lateral == pytest.approx(cfg.w_terminal_position * (cfg.lateral_window / 0.025) ** 2)
     for case in ("angle_rw3.50_sl4.82_sw2.12_th+0_y2.40", "angle_rw3.50_sl4.82_sw1.87_th+0_y2.40"):
         assert terminal_for(Scenario.from_case_id(case).build(), cfg) is None  # wide; no pose passes
     g = Scenario.from_case_id("angle_rw3.50_sl4.82_sw1.92_th+0_y2.40").build()

@@ -39,10 +39,9 @@ class MirrorPlannerConfig(StrictModel):
     w_terminal_position: float = Field(400.0, ge=0)
     w_terminal_heading: float = Field(400.0, ge=0)
     # [m] Where the target's ISO window across the slot is narrower than this to the nearer
-    # side, the end's position costs w_terminal_position x (lateral_reference / window)^2
-    # across the target's heading (window.py); wider windows keep one weight (0: always one).
+    # side, the end's position costs w_terminal_position x (this / window)^2 across the
+    # target's heading (window.py); wider windows keep one weight (0: always one weight).
     lateral_window: float = Field(0.06, ge=0, le=1)
-    lateral_reference: float = Field(0.1, gt=0, le=1)  # [m] an end this far across costs the same at 400
     w_terminal_accel: float = Field(1.0, ge=0)
     w_accel_cmd: float = Field(0.02, ge=0)
     w_steer_cmd: float = Field(0.05, ge=0)

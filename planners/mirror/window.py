@@ -5,10 +5,9 @@ In a tight slot that pull is too weak across the slot: in a 1.92 m angle slot th
 window is 2.5 cm to each side of the target, and an end 3 cm off costs 400 x 0.03^2 =
 0.36, less than the steering of a correcting move. The car then enters a little to one
 side and corrects it a millimetre per plan, for dozens of direction switches
-(docs/mirror_planner_notebook.md, "The end weighed across a tight slot"). Here, in slots
-whose window is narrower than ``cfg.lateral_window``, the weight across the slot grows as
-the window narrows, so that an end at the window's edge costs what an end
-``cfg.lateral_reference`` off costs at the one weight; wider slots keep the one weight,
+(docs/mirror_planner_notebook.md, "The tight-slot finish"). Here the weight across the slot
+grows as the window narrows, so that an end at the window's edge costs what it costs in a
+slot of ``cfg.lateral_window`` each side; slots at least that wide keep the one weight,
 and their plans are unchanged to the last bit.
 """
 
@@ -69,7 +68,7 @@ def terminal_for(geometry: ScenarioGeometry, cfg: MirrorPlannerConfig) -> Termin
     w = lateral_window(geometry)
     if w is None or cfg.lateral_window <= 0 or not MIN_WINDOW <= w < cfg.lateral_window:
         return None
-    scale = (max(cfg.lateral_reference, cfg.lateral_window) / w) ** 2
+    scale = (cfg.lateral_window / w) ** 2
     v = geometry.vehicle
     return Terminal(float(geometry.target[2]), cfg.w_terminal_position * scale, v.front_length, v.rear_overhang)
 
