@@ -14,7 +14,6 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
-from mirrorpark_env.angles import unwrap_near
 from mirrorpark_env.vehicle import VehicleParams
 
 from .config import MirrorPlannerConfig
@@ -57,13 +56,11 @@ class MirrorQP:
         k0[kinds == 1] = -(1 - 2 * kappa) * tx
         k0[kinds == 2] = -(1 - 2 * kappa) * ty
         k0[kinds == 3] = -theta_t
-        if terminal is not None:  # the end along the target's heading; its front and rear across the slot's axis
-            along, _ = terminal_error(terminal, tx, ty)
-            _, across = terminal_error(terminal, terminal.x, terminal.y)
-            axis = unwrap_near(terminal.heading, theta_t)
+        if terminal is not None:  # the end along the target's heading; its front and rear across it
+            along, across = terminal_error(terminal, tx, ty)
             k0[kinds == 4] = -(1 - 2 * kappa) * along
-            k0[kinds == 5] = -across - terminal.front * axis
-            k0[kinds == 6] = -across + terminal.rear * axis
+            k0[kinds == 5] = -across - terminal.front * theta_t
+            k0[kinds == 6] = -across + terminal.rear * theta_t
         return 2.0 * (L.T @ (w * k0))
 
     def _cost_entry(self, s: int | None, terminal: Terminal | None = None) -> tuple:

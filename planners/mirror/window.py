@@ -37,13 +37,12 @@ class Terminal:
     w_lateral: float
     front: float  # [m] rear axle to the front of the body
     rear: float  # [m] rear axle to the back of the body
-    x: float = 0.0  # [m] the target's rear axle: across is measured from the axis through it
-    y: float = 0.0
 
 
-def end_cost(terminal: Terminal, w_along: float, along: float, across: float, dtheta: float) -> float:
-    """The cost of an end ``along`` its goal's position and ``across`` the slot's axis, turned
-    ``dtheta`` from the axis, as the QP's rows weigh it (``qp.cost_pattern``)."""
+def end_cost(terminal: Terminal, w_along: float, dx: float, dy: float, dtheta: float) -> float:
+    """The cost of a real end offset (dx, dy, dtheta) from the target, as the QP's rows
+    weigh it (``qp.cost_pattern``)."""
+    along, across = terminal_error(terminal, dx, dy)
     front, rear = across + terminal.front * dtheta, across - terminal.rear * dtheta
     return w_along * along**2 + 0.5 * terminal.w_lateral * (front**2 + rear**2)
 
@@ -71,8 +70,7 @@ def terminal_for(geometry: ScenarioGeometry, cfg: MirrorPlannerConfig) -> Termin
         return None
     scale = (cfg.lateral_window / w) ** 2
     v = geometry.vehicle
-    tx, ty, th = (float(c) for c in geometry.target)
-    return Terminal(th, cfg.w_terminal_position * scale, v.front_length, v.rear_overhang, tx, ty)
+    return Terminal(float(geometry.target[2]), cfg.w_terminal_position * scale, v.front_length, v.rear_overhang)
 
 
 def terminal_error(terminal: Terminal, dx: float, dy: float) -> tuple[float, float]:
