@@ -5,10 +5,10 @@ In a tight slot that pull is too weak across the slot: in a 1.92 m angle slot th
 window is 2.5 cm to each side of the target, and an end 3 cm off costs 400 x 0.03^2 =
 0.36, less than the steering of a correcting move. The car then enters a little to one
 side and corrects it a millimetre per plan, for dozens of direction switches
-(docs/mirror_planner_notebook.md, "The end weighed across a tight slot"). Here the weight across the slot
-grows as the window narrows, so that an end at the window's edge costs what it costs in a
-slot of ``cfg.lateral_window`` each side; slots at least that wide keep the one weight,
-and their plans are unchanged to the last bit.
+(docs/mirror_planner_notebook.md, "The end weighed across a tight slot"). Here the weight
+across the slot grows as the window narrows, so that an end at the window's edge costs
+what it costs in a slot of ``cfg.lateral_window`` each side; slots at least that wide
+keep the one weight, and their plans are unchanged to the last bit.
 """
 
 from __future__ import annotations
