@@ -12,11 +12,9 @@ from __future__ import annotations
 import csv
 import sys
 
-from evaluation.cases import from_sample
+from evaluation.cases import CASE_FIELDS, from_sample
 from planners.mirror.config import MirrorPlannerConfig
 from planners.mirror.window import terminal_for
-
-FIELDS = ("parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "y0")
 
 
 def main(out: str, window: float | None = None) -> None:
@@ -31,7 +29,7 @@ def main(out: str, window: float | None = None) -> None:
             rows.append((sc.parking_type.value, sc.road_width, sc.slot_length, sc.slot_width, sc.theta0_deg, sc.y0))
     with open(out, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(FIELDS)
+        w.writerow(CASE_FIELDS)
         w.writerows(rows)
     slots = sorted({(k[0], k[3]) for k, v in changed.items() if v})
     n_slots = sum(changed.values())
