@@ -336,3 +336,20 @@ def test_policy_paths_change_gear_only_where_v_s_way_does_in_and_near_a_slot():
                         bad += int(np.count_nonzero(sign[1:] != sign[:-1]) > changes)
     assert tried > 500
     assert bad == 0
+
+
+def test_a_goal_down_v_moves_on_where_the_way_from_the_cars_cell_turns_back_at_once():
+    """In the mouth of an angle slot, 4 cm from its corner and 8 deg off its axis, the way
+    on from the pose the car's cell stores drives forward 21 cm before it reverses in, so
+    the goal of a candidate that reverses in without a switch was that pose, the car's own
+    (the candidate stood still, and the car shuffled out and in: 3 switches where 1 parks).
+    From where one exact move in reverse lands, the way reverses to the target."""
+    g = Scenario.from_case_id("angle_rw4.50_sl4.82_sw2.37_th-30_y2.50").build()
+    V = CostToGo(g, MirrorPlannerConfig().value_lattice)
+    pose = np.array([-0.41, -2.02, math.radians(53.48)])
+    s = V.at(pose, -1)[1]
+    assert V.way_on(s, 0)[1][1] == 1.0  # the stored way turns back at once
+    stuck = V.descend(pose, -1, 7.2)
+    assert math.hypot(stuck[0] - pose[0], stuck[1] - pose[1]) < 0.05
+    np.testing.assert_allclose(V.descend(pose, -1, 7.2, move_on=True), g.target, atol=1e-9)
+    np.testing.assert_array_equal(V.descend(pose, 1, 7.2, move_on=True), V.descend(pose, 1, 7.2))  # a way that goes on

@@ -485,21 +485,41 @@ class CostToGo:
             out.append((self.P[nxt // 2, nxt % 2].astype(float), 1.0 if nxt % 2 else -1.0))
             node = nxt
 
-    def descend(self, pose, gear: int, max_length: float = math.inf) -> np.ndarray | None:
+    def descend(self, pose, gear: int, max_length: float = math.inf, move_on: bool = False) -> np.ndarray | None:
         """The exact pose where V's cheapest way on from ``pose`` (arrived in ``gear``) first
         changes gear, reaches the target or has run ``max_length`` metres. None where V is
-        infinite."""
+        infinite. ``move_on``: where that way changes gear before its first step (the way
+        on from the pose the cell stores, up to a cell and a half away, may shuffle first
+        where the car need not), the pose down V from where one exact move in ``gear``
+        lands, the move ``policy_path`` takes (None where no such move reaches a finite V)."""
         v, s = self.at(pose, gear)
         if not math.isfinite(v):
             return None
         way = self.way_on(s, self._col(s, gear))
         g, length, last = (1.0 if gear > 0 else -1.0), 0.0, way[0][0]
+        steps = 0
         for q, gr in way[1:]:
             length += math.hypot(q[0] - last[0], q[1] - last[1])
             if gr != g or length > max_length + 1e-9:
                 break
             last = q
+            steps += 1
+        if move_on and steps == 0 and len(way) > 1 and way[1][1] != g:
+            pick = self._first_move(np.asarray(pose, float)[:3], int(g))
+            if pick is None:
+                return None
+            landed = arc(np.asarray(pose, float)[:3], self.kappa[pick[0]], np.array([g * self.step]))[0]
+            return self.descend(landed, int(g), max_length - self.step)
         return last.copy()
+
+    def _first_move(self, pose: np.ndarray, gear: int) -> tuple[int, int] | None:
+        """(move, state it lands in) of the cheapest exact move in ``gear`` from ``pose`` by
+        V where it lands plus the move's cost (None: none keeps its gap)."""
+        best, pick = math.inf, None
+        for p, v, s in self._moves_from(pose, gear, min(self.cfg.clearance, self._gap(pose))):
+            if v + self.cost[p] < best:
+                best, pick = v + self.cost[p], (p, s)
+        return pick
 
     def policy_path(
         self, pose, first_gear: int, changes: int, max_length: float, sample_step: float = 0.1
@@ -511,10 +531,7 @@ class CostToGo:
         pose = np.asarray(pose, float)[:3]
         g = 1.0 if first_gear > 0 else -1.0
         col = 1 if g > 0 else 0
-        best, pick = math.inf, None
-        for p, v, s in self._moves_from(pose, int(g), min(self.cfg.clearance, self._gap(pose))):
-            if v + self.cost[p] < best:
-                best, pick = v + self.cost[p], (p, s)
+        pick = self._first_move(pose, int(g))
         if pick is None:
             return None
         p, s = pick

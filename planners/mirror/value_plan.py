@@ -196,10 +196,14 @@ class _Call:
         return driven_cost(real, vc.reverse_cost) + vc.switch_cost * switches + v
 
     def aim(self, real: np.ndarray, c: Candidate) -> np.ndarray:
-        """The goal down V from the candidate's switch pose (or start) as far as the horizon left reaches."""
+        """The goal down V from the candidate's switch pose (or start) as far as the horizon left
+        reaches; where V's way from that pose's cell turns back at once, from one exact move on
+        in the candidate's last gear (without it such a goal is the pose itself, and the
+        candidate stands: measured, 21 of 192 goals of candidates without a switch on every
+        50th standard case)."""
         N, k = self.pl.N, 0 if c.switch is None else c.switch
         pose = real[k * self.cfg.model_substeps, :3] if len(real) > N + 1 else real[k, :3]
-        goal = self.vp.V.descend(pose, last_gear(c), self.reach * (N - k))
+        goal = self.vp.V.descend(pose, last_gear(c), self.reach * (N - k), move_on=True)
         return self.target.copy() if goal is None else goal
 
     def solve(self, cand: Candidate, goal: np.ndarray, seed: np.ndarray, miqp) -> tuple[float, Plan | None, bool, bool]:
