@@ -353,3 +353,17 @@ def test_a_goal_down_v_moves_on_where_the_way_from_the_cars_cell_turns_back_at_o
     assert math.hypot(stuck[0] - pose[0], stuck[1] - pose[1]) < 0.05
     np.testing.assert_allclose(V.descend(pose, -1, 7.2, move_on=True), g.target, atol=1e-9)
     np.testing.assert_array_equal(V.descend(pose, 1, 7.2, move_on=True), V.descend(pose, 1, 7.2))  # a way that goes on
+
+
+def test_a_join_to_v_s_way_turns_the_short_way_and_ends_on_the_way_s_pose():
+    """A cell's stored heading may differ from the car's by a full turn (22 of 554 joins on
+    every 25th standard case): the join's headings turn the short way, and its last pose is
+    the way's own, so the way goes on from it as stored."""
+    from planners.mirror.value import _straight
+
+    a = np.array([0.0, 0.0, math.pi - 0.05])
+    b = np.array([-0.29, 0.01, -math.pi + 0.05])  # 0.1 rad on, written a turn lower
+    out = _straight(a, b, math.hypot(-0.29, 0.01), 0.1)
+    assert len(out) == 3
+    np.testing.assert_allclose(out[:2, 2], [math.pi - 0.05 + 0.1 / 3, math.pi - 0.05 + 0.2 / 3], atol=1e-12)
+    np.testing.assert_array_equal(out[-1], b)
