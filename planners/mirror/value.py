@@ -506,10 +506,11 @@ class CostToGo:
             last = q
             steps += 1
         if move_on and steps == 0 and len(way) > 1 and way[1][1] != g:
-            pick = self._first_move(np.asarray(pose, float)[:3], int(g))
+            p0 = np.asarray(pose, float)[:3]
+            pick = self._first_move(p0, int(g))
             if pick is None:
                 return None
-            landed = arc(np.asarray(pose, float)[:3], self.kappa[pick[0]], np.array([g * self.step]))[0]
+            landed = arc(p0, self.kappa[pick[0]], np.array([g * self.step]))[0]
             return self.descend(landed, int(g), max_length - self.step)
         return last.copy()
 
