@@ -73,6 +73,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         backend=args.backend,
         ray_address=args.address,
         progress=not args.quiet,
+        mixed_code=args.mixed_code,
     )
     df = read_results([out])
     ids = {sc.case_id for sc in scenarios}
@@ -104,7 +105,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 def cmd_collect(args: argparse.Namespace) -> int:
     from .collect import collect
 
-    path = collect(args.planner, _cases(args), Path(args.out), workers=args.workers, progress=not args.quiet)
+    path = collect(
+        args.planner, _cases(args), Path(args.out), args.workers, progress=not args.quiet, mixed_code=args.mixed_code
+    )
     print(f"wrote {path} (load it with minari.MinariDataset('{path / 'data'}'))")
     return 0
 
@@ -141,7 +144,7 @@ def cmd_main(args: argparse.Namespace) -> int:
     out = Path(args.out)
     planners = list(MAIN) if args.planners is None else args.planners
     for p in planners:
-        evaluate(p, scenarios, out / p, workers=args.workers, progress=not args.quiet)
+        evaluate(p, scenarios, out / p, workers=args.workers, progress=not args.quiet, mixed_code=args.mixed_code)
     df = read_results([out / p for p in planners])
     path = write_report(df, out / "report")
     print(f"wrote {path}")
@@ -222,6 +225,12 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--types", nargs="+", choices=list(PARKING_TYPES), help="only these parking types")
         p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
+        p.add_argument(
+            "--mixed-code",
+            action="store_true",
+            help="resume a results folder whose rows came from other code than this "
+            "(refused by default: the old rows would pass for the new code's)",
+        )
 
     e = sub.add_parser("evaluate", help="run a planner over grid cases or layouts; resumable")
     e.add_argument(

@@ -87,10 +87,14 @@ def collect(
     out: str | Path,
     workers: int | None = None,
     progress: bool = True,
+    mixed_code: bool = False,
 ) -> Path:
-    """Record ``planner``'s episodes on ``scenarios`` into ``out``; resume where it stopped.
-    Returns the Minari dataset's folder."""
+    """Record ``planner``'s episodes on ``scenarios`` into ``out``; resume where it stopped,
+    if the episodes there are ``planner``'s and came from this code (``mixed_code``: whatever
+    code they came from). Returns the Minari dataset's folder."""
+    from .provenance import check_resume
     from .registry import make_policy
+    from .store import read_environments, record_environment
 
     make_policy(planner)  # an unknown planner fails now
     workers = (os.cpu_count() or 1) if workers is None else workers
@@ -99,8 +103,19 @@ def collect(
     out = Path(out)
     episodes = out / "episodes"
     episodes.mkdir(parents=True, exist_ok=True)
+    log = out / "environment.jsonl"
+    records, stored = read_environments(log), sum(1 for _ in episodes.glob("*.npz"))
+    others = {r.get("planner") for r in records} - {planner}
+    if stored and others:
+        raise ValueError(
+            f"{out}: holds episodes of {', '.join(sorted(map(str, others)))}, not only of {planner!r}: "
+            "collect into another --out folder"
+        )
+    check_resume(records, planner, stored, out, mixed_code)
     cases = unique(scenarios)[0]
     todo = [sc for sc in cases if not (episodes / f"{sc.case_id}.npz").exists()]
+    if todo:
+        record_environment(log, planner, len(todo))
     bar = progress_bar(len(todo), f"collect {planner}", progress)
     try:
         items = [(planner, sc, str(episodes)) for sc in todo]

@@ -6,16 +6,23 @@ between sessions in a few cases out of hundreds (docs/evaluation.md). Each evalu
 records its environment beside its results (``environment.jsonl`` in the results folder,
 the metadata of an exported table), and each row names it by ``environment_id``, so that
 two runs' rows can be told apart.
+
+Each run also records ``source_id``: a hash of the code and files that decide a row. A
+results folder resumes only with the code its rows came from (``check_resume``): after a
+change to a planner, resuming the old folder would hand back the old code's rows as if
+they were the new code's.
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
+import importlib.util
 import json
 import platform
 from datetime import datetime, timezone
 from importlib import metadata
+from pathlib import Path
 from typing import Any
 
 PACKAGES = (
@@ -93,3 +100,64 @@ def environment_id(env: dict[str, Any]) -> str:
 def current_id() -> str:
     """``environment_id`` of this process's environment."""
     return environment_id(environment())
+
+
+# What decides a row besides the machine and the packages: the environment and the
+# planners, the modules that run a case and build its row, and the environment's YAML files
+# (``configs/``); for ``rl:PATH`` also the model file.
+ROW_MODULES = (
+    "mirrorpark_env",
+    "planners",
+    "evaluation.runner",
+    "evaluation.registry",
+    "evaluation.causes",
+    "evaluation.cases",
+)
+ROW_CONFIGS = ("env.yaml", "vehicle.yaml")
+
+
+@functools.cache
+def _row_files() -> tuple[tuple[str, Path], ...]:
+    """(name, path) of every file ``source_id`` reads, in a fixed order."""
+    from mirrorpark_env.config import default_config_path
+
+    files: list[tuple[str, Path]] = []
+    for name in ROW_MODULES:
+        spec = importlib.util.find_spec(name)
+        if spec is None:
+            raise RuntimeError(f"source_id: module {name!r} not found")
+        if spec.submodule_search_locations:  # a package: every module in it
+            for root in map(Path, spec.submodule_search_locations):
+                files += [(f"{name}/{f.relative_to(root).as_posix()}", f) for f in sorted(root.rglob("*.py"))]
+        else:
+            files.append((name, Path(spec.origin)))
+    return (*files, *((f"configs/{n}", default_config_path(n)) for n in ROW_CONFIGS))
+
+
+def source_id(planner: str) -> str:
+    """A short hash of what decides ``planner``'s rows on a given machine: the files of
+    ``ROW_MODULES`` and ``ROW_CONFIGS`` (names and contents, wherever they are installed),
+    and for ``rl:PATH`` or ``rl-shield:PATH`` the model file's content."""
+    files = list(_row_files())
+    model = planner.split(":", 1)[1] if planner.startswith(("rl:", "rl-shield:")) else None
+    if model is not None and Path(model).is_file():
+        files.append(("model", Path(model)))
+    h = hashlib.sha256()
+    for name, f in files:
+        h.update(name.encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()[:12]
+
+
+def check_resume(records: list[dict[str, Any]], planner: str, done: int, folder: Path, mixed: bool) -> None:
+    """Raise where ``folder`` holds ``done`` rows (or episodes) of ``planner`` from other
+    code than this process's, as its environment ``records`` tell (``source``). Records
+    from before sources were recorded tell nothing, and pass; ``mixed`` lets it pass too."""
+    if not done or mixed:
+        return
+    known = [r["source"] for r in records if r.get("planner") == planner and r.get("source")]
+    if known and known[-1] != source_id(planner):
+        raise ValueError(
+            f"{folder}: its {done} results of {planner!r} came from other code (source {known[-1]}, "
+            f"now {source_id(planner)}): resuming would mix the two. Run into a fresh --out folder, "
+            "remove this one, or pass --mixed-code to add to it anyway"
+        )

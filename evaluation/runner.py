@@ -177,8 +177,12 @@ def evaluate(
     backend: str = "local",
     ray_address: str | None = None,
     progress: bool = True,
+    mixed_code: bool = False,
 ) -> ResultStore:
-    """Run ``planner`` over ``scenarios`` into the store at ``out``; resume where it stopped."""
+    """Run ``planner`` over ``scenarios`` into the store at ``out``; resume where it stopped,
+    if its rows of ``planner`` came from this code (``provenance.check_resume``; ``mixed_code``:
+    whatever code they came from)."""
+    from .provenance import check_resume
     from .registry import make_policy
 
     make_policy(planner)  # an unknown planner fails now, not in every worker
@@ -189,6 +193,7 @@ def evaluate(
         raise ValueError(f"workers: must be >= 1, got {workers}")
     store = ResultStore(out)
     done = store.done()
+    check_resume(store.environments(), planner, sum(p == planner for p, _ in done), store.folder, mixed_code)
     todo = [sc for sc in unique(scenarios)[0] if (planner, sc.case_id) not in done]
     if todo:
         store.record_environment(planner, len(todo))

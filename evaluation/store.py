@@ -97,25 +97,12 @@ class ResultStore:
         self._pending = len(self._rows()[0])
 
     def record_environment(self, planner: str, cases: int) -> None:
-        """Note what the run about to start runs on (``provenance.environment``): one line per run."""
-        from .provenance import environment, environment_id
-
-        env = environment()
-        line = {"id": environment_id(env), "planner": planner, "cases": cases, **env}
-        with self.environment_log.open("a") as f:
-            f.write(json.dumps(line) + "\n")
+        """Note what the run about to start runs on: one line per run."""
+        record_environment(self.environment_log, planner, cases)
 
     def environments(self) -> list[dict[str, Any]]:
         """The runs' environments, oldest first (lines that do not parse are skipped)."""
-        if not self.environment_log.exists():
-            return []
-        out = []
-        for line in self.environment_log.read_text().splitlines():
-            try:
-                out.append(json.loads(line))
-            except json.JSONDecodeError:
-                continue
-        return out
+        return read_environments(self.environment_log)
 
     def done(self) -> set[tuple[str, str]]:
         """(planner, case_id) pairs with a recorded row (errors included)."""
@@ -225,6 +212,30 @@ class ResultStore:
             p.unlink()
         self._pending = 0
         return self.parquet
+
+
+def record_environment(log: Path, planner: str, cases: int) -> None:
+    """Append to ``log`` what a run of ``planner`` on ``cases`` cases runs on
+    (``provenance.environment``) and the code it runs (``provenance.source_id``)."""
+    from .provenance import environment, environment_id, source_id
+
+    env = environment()
+    line = {"id": environment_id(env), "planner": planner, "cases": cases, "source": source_id(planner), **env}
+    with log.open("a") as f:
+        f.write(json.dumps(line) + "\n")
+
+
+def read_environments(log: Path) -> list[dict[str, Any]]:
+    """The lines of ``record_environment``'s ``log``, oldest first (lines that do not parse are skipped)."""
+    if not log.exists():
+        return []
+    out = []
+    for line in log.read_text().splitlines():
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue
+    return out
 
 
 def _write_new(df: pd.DataFrame, folder: Path, name: str) -> Path:

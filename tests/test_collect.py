@@ -56,6 +56,22 @@ def test_collection_resumes_without_redoing_episodes(tmp_path, require_module):
     assert minari.MinariDataset(path / "data").total_episodes == 2
 
 
+def test_a_collection_resumes_only_the_same_planners_episodes_of_the_same_code(tmp_path, require_module, monkeypatch):
+    """Episodes are named by case: resuming another planner's folder, or one recorded by
+    other code, would pass its episodes off as this run's."""
+    require_module("minari")
+    from evaluation import provenance
+
+    first = [Scenario.from_case_id(CASES[0])]
+    collect("guide-only", first, tmp_path, workers=1, progress=False)
+    with pytest.raises(ValueError, match="holds episodes of guide-only, not only of 'hybrid-astar'"):
+        collect("hybrid-astar", first, tmp_path, workers=1, progress=False)
+    monkeypatch.setattr(provenance, "source_id", lambda planner: "changed")
+    with pytest.raises(ValueError, match="its 1 results of 'guide-only' came from other code"):
+        collect("guide-only", first, tmp_path, workers=1, progress=False)
+    collect("guide-only", first, tmp_path, workers=1, progress=False, mixed_code=True)
+
+
 def test_unknown_planner_is_rejected_before_anything_runs(tmp_path):
     with pytest.raises(ValueError, match="planner: unknown"):
         collect("nope", [Scenario.from_case_id(CASES[0])], tmp_path, progress=False)

@@ -167,6 +167,61 @@ def test_rows_name_the_machine_and_packages_they_ran_with(tmp_path, stub_planner
     assert set(pd.read_parquet(path)["environment"]) == {envs[0]["id"]}
 
 
+def test_a_folder_resumes_only_with_the_code_its_rows_came_from(tmp_path, stub_planners, monkeypatch, capsys):
+    """After a change to the code, resuming a results folder would hand back the old code's
+    rows as the new code's: refused, naming the folder and the way out, unless asked. A
+    folder from before sources were recorded, and another planner's rows, do not count."""
+    from evaluation import provenance
+
+    evaluate("instant", _scenarios(A), tmp_path / "r", workers=1, progress=False)
+    assert ResultStore(tmp_path / "r").environments()[0]["source"] == provenance.source_id("instant")
+    evaluate("instant", _scenarios(A, B), tmp_path / "r", workers=1, progress=False)  # the same code: resumes
+    monkeypatch.setattr(provenance, "source_id", lambda planner: "changed")
+    _Instant.calls = []
+    with pytest.raises(ValueError, match=r"r: its 2 results of 'instant' came from other code.*--mixed-code"):
+        evaluate("instant", _scenarios(A, B, C), tmp_path / "r", workers=1, progress=False)
+    assert _Instant.calls == []  # refused before anything ran
+    cases = tmp_path / "cases.csv"
+    cases.write_text("parking_type,road_width,slot_length,slot_width,theta0_deg,y0\nreverse,6,4.82,2.32,40,3.0\n")
+    args = ["evaluate", "--planner", "instant", "--cases", str(cases), "--out", str(tmp_path / "r"), "--quiet"]
+    assert cli(args) == 2
+    assert "came from other code" in capsys.readouterr().err
+    evaluate("instant", _scenarios(A, B, C), tmp_path / "r", workers=1, progress=False, mixed_code=True)
+    assert _Instant.calls == [C] and ResultStore(tmp_path / "r").environments()[-1]["source"] == "changed"
+    evaluate("instant", _scenarios(A, B, C), tmp_path / "r", workers=1, progress=False)  # now "changed" is the code
+    old = tmp_path / "old"  # a folder from before sources were recorded
+    evaluate("instant", _scenarios(A), old, workers=1, progress=False)
+    log = old / "environment.jsonl"
+    log.write_text("".join(json.dumps({k: v for k, v in json.loads(x).items() if k != "source"}) + "\n"
+                           for x in log.read_text().splitlines()))  # fmt: skip
+    monkeypatch.setattr(provenance, "source_id", lambda planner: "again")
+    evaluate("instant", _scenarios(A, B), old, workers=1, progress=False)
+    monkeypatch.setitem(registry.PLANNERS, "other", _Instant)
+    evaluate("other", _scenarios(A), tmp_path / "r", workers=1, progress=False)  # another planner's rows
+
+
+def test_the_source_id_changes_with_a_planner_file_and_an_rl_model_file(tmp_path, monkeypatch):
+    from evaluation import provenance
+
+    files = provenance._row_files()
+    assert {"planners/mirror/value_plan.py", "mirrorpark_env/env.py", "evaluation.runner", "configs/vehicle.yaml"} <= {
+        n for n, _ in files
+    }
+    copy = tmp_path / "value_plan.py"
+    copy.write_bytes(dict(files)["planners/mirror/value_plan.py"].read_bytes())
+    swapped = tuple((n, copy if n == "planners/mirror/value_plan.py" else f) for n, f in files)
+    monkeypatch.setattr(provenance, "_row_files", lambda: swapped)
+    before = provenance.source_id("mirror")
+    assert before == provenance.source_id("mirror-cold")  # the code, not the name
+    copy.write_bytes(copy.read_bytes() + b"\n")
+    assert provenance.source_id("mirror") != before
+    model = tmp_path / "model.zip"
+    model.write_bytes(b"one")
+    first = provenance.source_id(f"rl:{model}")
+    model.write_bytes(b"two")
+    assert provenance.source_id(f"rl:{model}") != first
+
+
 def test_a_case_that_raises_is_an_error_row(tmp_path, stub_planners):
     from mirrorpark_env import Scenario
 
