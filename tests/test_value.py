@@ -355,27 +355,6 @@ def test_a_goal_down_v_moves_on_where_the_way_from_the_cars_cell_turns_back_at_o
     np.testing.assert_array_equal(V.descend(pose, 1, 7.2, move_on=True), V.descend(pose, 1, 7.2))  # a way that goes on
 
 
-def test_a_goal_down_v_does_not_creep_a_move_on_where_the_way_turns_back_there_too():
-    """On a 3.5 m road, where V's way turns back to reverse into the slot at once, and again
-    one forward move on, a forward candidate aimed one move on only crept: `mirror-cold`,
-    whose reverse candidates V's way does not seed, drove 20 cm a plan until it gave up
-    (`parallel_rw3.50_sl5.02_sw2.50_th+0_y2.00`). There the goal stays the pose."""
-    g = Scenario.from_case_id("parallel_rw3.50_sl5.02_sw2.50_th+0_y2.00").build()
-    V = CostToGo(g, MirrorPlannerConfig().value_lattice)
-    pose = np.array([7.43, 1.87, math.radians(1.63)])
-    s = V.at(pose, 1)[1]
-    assert V.way_on(s, 1)[1][1] == -1.0  # the way from the pose's cell turns back at once
-    move = V._first_move(pose, 1)
-    landed = arc(pose, V.kappa[move[0]], np.array([V.step]))[0]
-    s1 = V.at(landed, 1)[1]
-    assert V.way_on(s1, 1)[1][1] == -1.0  # and one forward move on as well
-    creep = V.descend(landed, 1, 7.2)  # the goal one move on, as it was
-    assert math.hypot(creep[0] - pose[0], creep[1] - pose[1]) > 0.15
-    goal = V.descend(pose, 1, 7.2, move_on=True)
-    np.testing.assert_array_equal(goal, V.descend(pose, 1, 7.2))
-    assert math.hypot(goal[0] - pose[0], goal[1] - pose[1]) < 0.1
-
-
 def test_a_join_to_v_s_way_turns_the_short_way_and_ends_on_the_way_s_pose():
     """A cell's stored heading may differ from the car's by a full turn (22 of 554 joins on
     every 25th standard case): the join's headings turn the short way, and its last pose is
