@@ -493,28 +493,6 @@ class CostToGo:
         on from the pose the cell stores, up to a cell and a half away, may shuffle first
         where the car need not), the pose down V from where one exact move in ``gear``
         lands, the move ``policy_path`` takes (None where no such move reaches a finite V)."""
-        out = self._descend(pose, gear, max_length)
-        if out is None:
-            return None
-        last, turns_back = out
-        if move_on and turns_back:
-            p0 = np.asarray(pose, float)[:3]
-            pick = self._first_move(p0, int(gear))
-            if pick is None:
-                return None
-            landed = arc(p0, self.kappa[pick[0]], np.array([(1.0 if gear > 0 else -1.0) * self.step]))[0]
-            on = self._descend(landed, gear, max_length - self.step)
-            if on is None:
-                return None
-            # Where V's way turns back one move on as well, the gear is V's wrong one there
-            # too: a goal one move on would only creep (measured on `mirror-cold`, whose
-            # other candidates V's way does not seed: 20 cm a plan until it gave up).
-            return last.copy() if on[1] else on[0].copy()
-        return last.copy()
-
-    def _descend(self, pose, gear: int, max_length: float) -> tuple[np.ndarray, bool] | None:
-        """(the pose where V's way on from ``pose`` first changes gear, reaches the target or
-        has run ``max_length`` metres; whether it changes gear before its first step)."""
         v, s = self.at(pose, gear)
         if not math.isfinite(v):
             return None
@@ -527,7 +505,14 @@ class CostToGo:
                 break
             last = q
             steps += 1
-        return last, steps == 0 and len(way) > 1 and way[1][1] != g
+        if move_on and steps == 0 and len(way) > 1 and way[1][1] != g:
+            p0 = np.asarray(pose, float)[:3]
+            pick = self._first_move(p0, int(g))
+            if pick is None:
+                return None
+            landed = arc(p0, self.kappa[pick[0]], np.array([g * self.step]))[0]
+            return self.descend(landed, int(g), max_length - self.step)
+        return last.copy()
 
     def _first_move(self, pose: np.ndarray, gear: int) -> tuple[int, int] | None:
         """(move, state it lands in) of the cheapest exact move in ``gear`` from ``pose`` by
