@@ -9,13 +9,14 @@ and prints the row: the chunk's slots, success against the committed run (cases 
 and lost), the other two planners' success, the failure causes, switches and parking
 time where both runs park, collisions, errors and worker time. ``--insert`` also puts
 it after the row of chunk K - 1 of the same folder in results/grid/README.md and counts
-the chunk in docs/evaluation.md ("chunks 1 to K of 64"). ``--code`` and ``--run`` are
+the chunk in docs/evaluation.md ("chunks 1 to K of 64") where it counts them. ``--code`` and ``--run`` are
 the row's second column and the start of its third, as the person running it words them.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import pandas as pd
@@ -117,11 +118,12 @@ def insert(k: int, folder: Path, planner: str, text: str) -> None:
         raise ValueError(f"results/grid/README.md: expected one row of chunk {k - 1} of {tag}, found {len(prev)}")
     doc = ROOT / "docs" / "evaluation.md"
     s = doc.read_text()
-    if f"chunks 1 to {k - 1} of 64" not in s:  # checked before either file is written
-        raise ValueError(f"docs/evaluation.md does not say 'chunks 1 to {k - 1} of 64'")
     lines.insert(prev[0] + 1, text)
     readme.write_text("\n".join(lines))
-    doc.write_text(s.replace(f"chunks 1 to {k - 1} of 64", f"chunks 1 to {k} of 64"))
+    if f"chunks 1 to {k - 1} of 64" in s:
+        doc.write_text(s.replace(f"chunks 1 to {k - 1} of 64", f"chunks 1 to {k} of 64"))
+    else:  # a rerun that docs/evaluation.md does not count chunk by chunk
+        print(f"note: docs/evaluation.md does not say 'chunks 1 to {k - 1} of 64'; left as it is", file=sys.stderr)
 
 
 def main() -> None:
