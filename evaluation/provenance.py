@@ -157,7 +157,7 @@ def check_resume(records: list[dict[str, Any]], planner: str, done: int, folder:
     known = [r["source"] for r in records if r.get("planner") == planner and r.get("source")]
     if known and known[-1] != source_id(planner):
         raise ValueError(
-            f"{folder}: its {done} results of {planner!r} came from other code (source {known[-1]}, "
+            f"{folder}: its {done} result{'s' * (done != 1)} of {planner!r} came from other code (source {known[-1]}, "
             f"now {source_id(planner)}): resuming would mix the two. Run into a fresh --out folder, "
             "remove this one, or pass --mixed-code to add to it anyway"
         )

@@ -67,7 +67,7 @@ def test_a_collection_resumes_only_the_same_planners_episodes_of_the_same_code(t
     with pytest.raises(ValueError, match="holds episodes of guide-only, not only of 'hybrid-astar'"):
         collect("hybrid-astar", first, tmp_path, workers=1, progress=False)
     monkeypatch.setattr(provenance, "source_id", lambda planner: "changed")
-    with pytest.raises(ValueError, match="its 1 results of 'guide-only' came from other code"):
+    with pytest.raises(ValueError, match="its 1 result of 'guide-only' came from other code"):
         collect("guide-only", first, tmp_path, workers=1, progress=False)
     collect("guide-only", first, tmp_path, workers=1, progress=False, mixed_code=True)
 
