@@ -420,6 +420,25 @@ def _one_line_warnings() -> None:
     warnings.showwarning = show
 
 
+def _stop_on_sigterm() -> list[bool]:
+    """Make SIGTERM (``kill``, a scheduler's stop, ``timeout``) stop a run as Ctrl-C does:
+    without it the process dies at once, and its worker processes run on, orphaned, until
+    their batch of cases is done. Returns a flag set when SIGTERM came."""
+    import signal
+
+    came = [False]
+
+    def stop(signum, frame):
+        came[0] = True
+        raise KeyboardInterrupt
+
+    try:
+        signal.signal(signal.SIGTERM, stop)
+    except ValueError:  # not the main thread: leave SIGTERM as it is
+        pass
+    return came
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if getattr(args, "func", None) is cmd_evaluate and args.out is None:
@@ -428,6 +447,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{'layouts' if args.layouts else 'cases' if args.cases else args.sample}"
         )
     _one_line_warnings()
+    terminated = _stop_on_sigterm()
     try:
         return args.func(args)
     except ValueError as err:  # bad input: one clear line, no traceback
@@ -437,9 +457,10 @@ def main(argv: list[str] | None = None) -> int:
         where = f"{err.filename}: " if err.filename else ""
         print(f"mirrorpark: error: {where}{err.strerror or err}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt as err:  # Ctrl-C: what is stored, and how to resume
-        print(f"mirrorpark: interrupted{': ' + str(err) if str(err) else ''}", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as err:  # Ctrl-C or SIGTERM: what is stored, and how to resume
+        what = "terminated" if terminated[0] else "interrupted"
+        print(f"mirrorpark: {what}{': ' + str(err) if str(err) else ''}", file=sys.stderr)
+        return 143 if terminated[0] else 130
 
 
 if __name__ == "__main__":

@@ -229,10 +229,13 @@ def evaluate(
 
 
 def _ignore_sigint() -> None:
-    """Workers leave Ctrl-C to the parent, which stops them and keeps what is stored."""
+    """Workers leave Ctrl-C to the parent, which stops them and keeps what is stored, and
+    die at SIGTERM, which is how the parent stops them (a forked worker would otherwise
+    inherit the command line's SIGTERM handler)."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def run_parallel(

@@ -55,6 +55,35 @@ def test_ctrl_c_with_several_workers_stops_cleanly_and_says_how_to_resume(tmp_pa
     assert stored == len(read_results([out])) >= 3
 
 
+def test_sigterm_to_the_run_alone_stops_its_workers_and_keeps_what_is_stored(tmp_path):
+    """SIGTERM to the main process only (``kill PID``, a scheduler's stop): it stops as at
+    Ctrl-C, with exit 143, and its workers do not run on orphaned (they did, each until at
+    least the case in hand was done: 1.4 s after the run with cases of 1 s)."""
+    out = tmp_path / "o"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _SLOW_RUN.format(out=str(out), n=40, delay=3.0)],
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group: the workers' too
+    )
+    _wait_for_rows(out, 2)
+    os.kill(proc.pid, signal.SIGTERM)
+    err = proc.communicate(timeout=60)[1].strip()
+    assert proc.returncode == 143, err
+    assert "Traceback" not in err and err.count("\n") == 0, err
+    assert err.startswith("mirrorpark: terminated:") and "rerun the same command to resume" in err
+    stored = int(err.split("terminated: ")[1].split()[0])
+    assert stored == len(read_results([out])) >= 2
+    t0 = time.time()
+    while time.time() - t0 < 1.0:  # an orphaned worker would run on to the end of its 3 s case
+        try:
+            os.killpg(proc.pid, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.05)
+    raise AssertionError("worker processes still ran 1 s after the run stopped")
+
+
 # ------------------------------------------------ SIGKILL at random moments
 _SLOW_RUN = textwrap.dedent(
     """
