@@ -422,8 +422,8 @@ def _one_line_warnings() -> None:
 
 def _stop_on_sigterm() -> list[bool]:
     """Make SIGTERM (``kill``, a scheduler's stop, ``timeout``) stop a run as Ctrl-C does:
-    without it the process dies at once, and its worker processes run on, orphaned, until
-    their batch of cases is done. Returns a flag set when SIGTERM came."""
+    without it the process dies at once, and its worker processes run on, orphaned, into
+    the case in hand (1.4 s on with cases of 1 s). Returns a flag set when SIGTERM came."""
     import signal
 
     came = [False]
