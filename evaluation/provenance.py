@@ -134,18 +134,28 @@ def _row_files() -> tuple[tuple[str, Path], ...]:
     return (*files, *((f"configs/{n}", default_config_path(n)) for n in ROW_CONFIGS))
 
 
-def source_id(planner: str) -> str:
-    """A short hash of what decides ``planner``'s rows on a given machine: the files of
-    ``ROW_MODULES`` and ``ROW_CONFIGS`` (names and contents, wherever they are installed),
-    and for ``rl:PATH`` or ``rl-shield:PATH`` the model file's content."""
+def _planner_files(planner: str) -> list[tuple[str, Path]]:
     files = list(_row_files())
     model = planner.split(":", 1)[1] if planner.startswith(("rl:", "rl-shield:")) else None
     if model is not None and Path(model).is_file():
         files.append(("model", Path(model)))
+    return files
+
+
+def source_id(planner: str) -> str:
+    """A short hash of what decides ``planner``'s rows on a given machine: the files of
+    ``ROW_MODULES`` and ``ROW_CONFIGS`` (names and contents, wherever they are installed),
+    and for ``rl:PATH`` or ``rl-shield:PATH`` the model file's content."""
     h = hashlib.sha256()
-    for name, f in files:
+    for name, f in _planner_files(planner):
         h.update(name.encode() + b"\0" + f.read_bytes() + b"\0")
     return h.hexdigest()[:12]
+
+
+def source_files(planner: str) -> dict[str, str]:
+    """A short hash of each file ``source_id`` reads, by name: what tells which files a
+    change of ``source_id`` came from."""
+    return {name: hashlib.sha256(f.read_bytes()).hexdigest()[:12] for name, f in _planner_files(planner)}
 
 
 def check_resume(records: list[dict[str, Any]], planner: str, done: int, folder: Path, mixed: bool) -> None:
@@ -154,10 +164,16 @@ def check_resume(records: list[dict[str, Any]], planner: str, done: int, folder:
     from before sources were recorded tell nothing, and pass; ``mixed`` lets it pass too."""
     if not done or mixed:
         return
-    known = [r["source"] for r in records if r.get("planner") == planner and r.get("source")]
-    if known and known[-1] != source_id(planner):
+    known = [r for r in records if r.get("planner") == planner and r.get("source")]
+    if known and known[-1]["source"] != source_id(planner):
+        last, changed = known[-1], ""
+        if isinstance(last.get("source_files"), dict):
+            now = source_files(planner)
+            names = sorted(n for n in {*now, *last["source_files"]} if now.get(n) != last["source_files"].get(n))
+            more = f" and {len(names) - 5} more" if len(names) > 5 else ""
+            changed = f"; changed: {', '.join(names[:5])}{more}" if names else ""
         raise ValueError(
-            f"{folder}: its {done} result{'s' * (done != 1)} of {planner!r} came from other code (source {known[-1]}, "
-            f"now {source_id(planner)}): resuming would mix the two. Run into a fresh --out folder, "
-            "remove this one, or pass --mixed-code to add to it anyway"
+            f"{folder}: its {done} result{'s' * (done != 1)} of {planner!r} came from other code (source "
+            f"{last['source']}, now {source_id(planner)}{changed}): resuming would mix the two. Run into a fresh "
+            "--out folder, remove this one, or pass --mixed-code to add to it anyway"
         )

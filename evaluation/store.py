@@ -217,10 +217,11 @@ class ResultStore:
 def record_environment(log: Path, planner: str, cases: int) -> None:
     """Append to ``log`` what a run of ``planner`` on ``cases`` cases runs on
     (``provenance.environment``) and the code it runs (``provenance.source_id``)."""
-    from .provenance import environment, environment_id, source_id
+    from .provenance import environment, environment_id, source_files, source_id
 
     env = environment()
     line = {"id": environment_id(env), "planner": planner, "cases": cases, "source": source_id(planner), **env}
+    line["source_files"] = source_files(planner)
     with log.open("a") as f:
         f.write(json.dumps(line) + "\n")
 

@@ -200,6 +200,20 @@ def test_a_folder_resumes_only_with_the_code_its_rows_came_from(tmp_path, stub_p
     evaluate("other", _scenarios(A), tmp_path / "r", workers=1, progress=False)  # another planner's rows
 
 
+def test_a_refused_resume_names_the_files_that_changed(tmp_path, stub_planners, monkeypatch):
+    from evaluation import provenance
+
+    files = provenance._row_files()
+    copy = tmp_path / "value_plan.py"
+    copy.write_bytes(dict(files)["planners/mirror/value_plan.py"].read_bytes())
+    swapped = tuple((n, copy if n == "planners/mirror/value_plan.py" else f) for n, f in files)
+    monkeypatch.setattr(provenance, "_row_files", lambda: swapped)
+    evaluate("instant", _scenarios(A), tmp_path / "r", workers=1, progress=False)
+    copy.write_bytes(copy.read_bytes() + b"\n")
+    with pytest.raises(ValueError, match=r"changed: planners/mirror/value_plan.py\):"):
+        evaluate("instant", _scenarios(A, B), tmp_path / "r", workers=1, progress=False)
+
+
 def test_the_source_id_changes_with_a_planner_file_and_an_rl_model_file(tmp_path, monkeypatch):
     from evaluation import provenance
 
