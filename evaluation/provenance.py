@@ -165,7 +165,8 @@ def check_resume(records: list[dict[str, Any]], planner: str, done: int, folder:
     if not done or mixed:
         return
     known = [r for r in records if r.get("planner") == planner and r.get("source")]
-    if known and known[-1]["source"] != source_id(planner):
+    now_id = source_id(planner) if known else None
+    if known and known[-1]["source"] != now_id:
         last, changed = known[-1], ""
         if isinstance(last.get("source_files"), dict):
             now = source_files(planner)
@@ -174,6 +175,6 @@ def check_resume(records: list[dict[str, Any]], planner: str, done: int, folder:
             changed = f"; changed: {', '.join(names[:5])}{more}" if names else ""
         raise ValueError(
             f"{folder}: its {done} result{'s' * (done != 1)} of {planner!r} came from other code (source "
-            f"{last['source']}, now {source_id(planner)}{changed}): resuming would mix the two. Run into a fresh "
+            f"{last['source']}, now {now_id}{changed}): resuming would mix the two. Run into a fresh "
             "--out folder, remove this one, or pass --mixed-code to add to it anyway"
         )
