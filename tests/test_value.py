@@ -14,7 +14,8 @@ from mirrorpark_env import Scenario
 from planners.base import run_episode
 from planners.common.clearance import gaps
 from planners.common.path import arc
-from planners.mirror.config import MirrorPlannerConfig
+from planners.mirror.config import MirrorPlannerConfig, cold_config
+from planners.mirror.planner import MirrorPlanner
 from planners.mirror.policy import MirrorPolicy
 from planners.mirror.value import CostToGo, ValueConfig
 
@@ -214,7 +215,7 @@ def test_mirror_parks_and_executes_the_cheapest_candidate_of_each_call(case_id, 
         monkeypatch.setattr(CostToGo, "read_path", asked)
         monkeypatch.setattr(MirrorPlanner, "guide_search", asked)
     env = gym.make("MirrorPark-v0").unwrapped
-    policy = MirrorPolicy(MirrorPlannerConfig(time_limit_s=600.0, value_warm_start=warm_start))
+    policy = MirrorPolicy(MirrorPlannerConfig(time_limit_s=600.0) if warm_start else cold_config(time_limit_s=600.0))
     info, _ = run_episode(env, policy, case_id)
     assert info["is_success"] and not info["collision"], info["failed_criterion"]
     calls = [s for s in policy.stats if s.status == "ok"]
@@ -223,6 +224,26 @@ def test_mirror_parks_and_executes_the_cheapest_candidate_of_each_call(case_id, 
         costs = [c[1] for c in s.detail["candidates"] if c[1] is not None]
         assert s.detail["value"] == pytest.approx(min(costs), abs=1e-3)  # the optimisation's choice
         assert s.detail["guided"] is False
+
+
+@pytest.mark.slow
+def test_mirror_cold_seeds_a_candidate_without_a_switch_by_the_shape_sized_to_its_goal():
+    """Across a 4.5 m road, the car's nose 1.2 m from the road's far side: every classic
+    shape sized to the target runs into a wall, and without path warm starts no candidate
+    gave a plan, so ``mirror-cold`` never moved the car. The shape sized to a candidate's own
+    goal (down V from the car, as the candidate is aimed) seeds a plan. The goal is a short
+    reverse; the default's warm start, V's way on, reaches the same plan."""
+    env = gym.make("MirrorPark-v0").unwrapped
+    _, info = env.reset(options={"scenario": "parallel_rw4.50_sl4.82_sw2.50_th+70_y1.20"})
+    out = {}
+    for goal_shapes in (False, True):
+        planner = MirrorPlanner(info["geometry"], cold_config(value_goal_shapes=goal_shapes, time_limit_s=600.0))
+        out[goal_shapes] = planner.plan(info["vehicle_state"]), planner.last_stats
+    assert out[False][1].status != "ok"
+    assert all(j is None for _, j, *_ in out[False][1].detail["candidates"])
+    plan, stats = out[True]
+    assert stats.status == "ok" and plan.collision_free and plan.candidate.switch is None
+    assert np.abs(plan.states[:, 3]).max() > 0.05  # it moves
 
 
 def _rolls_back(plan, tau: float) -> bool:

@@ -92,13 +92,19 @@ class MirrorPlannerConfig(StrictModel):
     # Also the way V prices at the car (``CostToGo.read_path``) as a warm start, beside V's
     # way on after one exact move (added on 2026-12-04; False: the default before it).
     value_read_seed: bool = True
+    # Without path warm starts: a candidate without a switch is also seeded by the classic
+    # shape sized to its own goal (down V from the car) instead of the target, the better seed
+    # by J kept. What V's way gives the default; a shape sized to the target from a car
+    # across the road runs into a wall (``mirror-cold``; added on 2026-12-04).
+    value_goal_shapes: bool = False
 
 
 def cold_config(**changes) -> MirrorPlannerConfig:
     """``mirror-cold``: ``mirror`` without any path as a warm start (neither the cost to go's
-    cheapest way on nor the guide); the classic shapes seed the candidates, V stays the
-    terminal cost. The ablation that shows what the warm start adds."""
-    return MirrorPlannerConfig(**{"value_warm_start": False, **changes})
+    cheapest way on nor the guide); the classic shapes seed the candidates, those without a
+    switch also the shape sized to their own goal down V, and V stays the terminal cost. The
+    ablation that shows what the warm start adds."""
+    return MirrorPlannerConfig(**{"value_warm_start": False, "value_goal_shapes": True, **changes})
 
 
 def guided_config(**changes) -> MirrorPlannerConfig:

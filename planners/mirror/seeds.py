@@ -133,10 +133,17 @@ class ShapeSeeds:
         """
         return self.seeds(xi0, [(cand, swing)], line)[0]
 
-    def seeds(self, xi0: np.ndarray, pairs: list[tuple[Candidate, float | None]], line: MirrorLine) -> np.ndarray:
-        """``seed`` of each (candidate, swing), rolled out together: (K, 2N + 1, 6)."""
+    def seeds(
+        self,
+        xi0: np.ndarray,
+        pairs: list[tuple[Candidate, float | None]],
+        line: MirrorLine,
+        target: tuple[float, float, float] | None = None,
+    ) -> np.ndarray:
+        """``seed`` of each (candidate, swing), rolled out together: (K, 2N + 1, 6).
+        ``target``: the pose the shapes head for (default the slot's target pose)."""
         N, dt = self.N, self.cfg.dt
-        tx, ty, tth = self.g.target
+        tx, ty, tth = self.g.target if target is None else target
         tth = unwrap_near(tth, xi0[XI_TH])
         u_t = np.array([math.cos(tth), math.sin(tth)])
         S_guess = np.array([tx, ty]) + line.distance * np.array(line.normal)

@@ -72,7 +72,7 @@ class ValuePlanning:
         line = pl.line_from(state.theta)
         prev = self.last_gear if abs(state.v) < 0.05 else (1 if state.v > 0 else -1)
         call = _Call(self, xi0, start, line, prev)
-        picked, fixed = self._warm_starts(state, xi0, line, call.reach), set()  # fixed: aimed at the target
+        picked, fixed = self._warm_starts(state, xi0, line, call), set()  # fixed: aimed at the target
         target = call.target
         if math.hypot(xi0[0] - target[0], xi0[1] - target[1]) < cfg.value_finish_radius:
             theta_t = unwrap_near(target[2], state.theta)
@@ -132,11 +132,11 @@ class ValuePlanning:
         v = min(self.cost_to_go(real[-1, :3]), 1e3)
         return driven_cost(real, self.V.cfg.reverse_cost) + self.V.cfg.switch_cost * switches + v + 100.0 * float(pen)
 
-    def _warm_starts(self, state: VehicleState, xi0: np.ndarray, line, reach: float):
+    def _warm_starts(self, state: VehicleState, xi0: np.ndarray, line, call: _Call):
         """(candidate, seed) pairs: V's cheapest way on in each first gear allowed, through
         no switch and through one, tracked; the guide's, where the planner has one; the
         classic shapes where V is blind; the way V prices at the car, tracked."""
-        pl, cfg = self.pl, self.pl.cfg
+        pl, cfg, reach = self.pl, self.pl.cfg, call.reach
         picked: list[tuple[Candidate, np.ndarray]] = []
         dirs = [1 if state.v > 0 else -1] if abs(state.v) > 0.1 else [1, -1]
         for d in dirs if cfg.value_warm_start else ():
@@ -152,9 +152,7 @@ class ValuePlanning:
                 c, seed, _ = pl.guided_seed.seed(xi0, guide)
                 picked = [(q, s) for q, s in picked if q != c] + [(c, seed)]
         if not picked:
-            ranked = pl.shape_seeds.ranked(xi0, pl.shape_seeds.candidates(state, line), line, self._seed_merit)
-            picked = [cs for cs in ranked if cs[0].switch is None]
-            picked += [cs for cs in ranked if cs[0].switch is not None][: cfg.value_candidates]
+            picked = self._shape_starts(state, xi0, line, call)
         # The way V prices at the car (``CostToGo.read_path``), through no switch and through
         # one: a new candidate, or a second seed for one already picked, where the better
         # seed by J (with its penetration priced) is kept. Measured on the standard sample:
@@ -173,6 +171,20 @@ class ValuePlanning:
             elif self._seed_merit(seed) < self._seed_merit(picked[same[0]][1]):
                 picked[same[0]] = (c, seed)
         return picked
+
+    def _shape_starts(self, state: VehicleState, xi0: np.ndarray, line, call: _Call):
+        """(candidate, seed) pairs from the classic shapes, best by the merit: every candidate
+        without a switch (``value_goal_shapes``: its seed sized to its own goal instead, where
+        that seed's merit is lower) and the best ``value_candidates`` with one."""
+        pl, cfg = self.pl, self.pl.cfg
+        ranked = pl.shape_seeds.ranked(xi0, pl.shape_seeds.candidates(state, line), line, self._seed_merit)
+        picked = [cs for cs in ranked if cs[0].switch is None]
+        if cfg.value_goal_shapes:
+            for n, (c, seed) in enumerate(picked):
+                aimed = pl.shape_seeds.seeds(xi0, [(c, None)], line, target=tuple(call.aim(seed, c)))[0]
+                if self._seed_merit(aimed) < self._seed_merit(seed):
+                    picked[n] = (c, aimed)
+        return picked + [cs for cs in ranked if cs[0].switch is not None][: cfg.value_candidates]
 
 
 class _Call:
