@@ -228,7 +228,7 @@ def evaluate(
     return store
 
 
-def _ignore_sigint() -> None:
+def _worker_signals() -> None:
     """Workers leave Ctrl-C to the parent, which stops them and keeps what is stored, and
     die at SIGTERM, which is how the parent stops them (a forked worker would otherwise
     inherit the command line's SIGTERM handler)."""
@@ -356,7 +356,7 @@ def _init_worker(extra: dict, results=None) -> None:
     global _RESULTS
     from . import registry
 
-    _ignore_sigint()
+    _worker_signals()
     registry.PLANNERS.update(extra)
     _RESULTS = results
 
