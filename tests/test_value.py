@@ -232,7 +232,8 @@ def test_mirror_cold_seeds_a_candidate_without_a_switch_by_the_shape_sized_to_it
     shape sized to the target runs into a wall, and without path warm starts no candidate
     gave a plan, so ``mirror-cold`` never moved the car. The shape sized to a candidate's own
     goal (down V from the car, as the candidate is aimed) seeds a plan. The goal is a short
-    reverse; the default's warm start, V's way on, reaches the same plan."""
+    reverse; the default, warm-started along V's way on, picks the same candidate at the
+    same optimal cost (to 0.01)."""
     env = gym.make("MirrorPark-v0").unwrapped
     _, info = env.reset(options={"scenario": "parallel_rw4.50_sl4.82_sw2.50_th+70_y1.20"})
     out = {}
@@ -244,6 +245,9 @@ def test_mirror_cold_seeds_a_candidate_without_a_switch_by_the_shape_sized_to_it
     plan, stats = out[True]
     assert stats.status == "ok" and plan.collision_free and plan.candidate.switch is None
     assert np.abs(plan.states[:, 3]).max() > 0.05  # it moves
+    default = MirrorPlanner(info["geometry"], MirrorPlannerConfig(time_limit_s=600.0))
+    warm = default.plan(info["vehicle_state"])
+    assert warm.candidate == plan.candidate and default.last_stats.cost == pytest.approx(stats.cost, abs=0.01)
 
 
 def _rolls_back(plan, tau: float) -> bool:

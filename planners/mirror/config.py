@@ -93,9 +93,9 @@ class MirrorPlannerConfig(StrictModel):
     # way on after one exact move (added on 2026-12-04; False: the default before it).
     value_read_seed: bool = True
     # Without path warm starts: a candidate without a switch is also seeded by the classic
-    # shape sized to its own goal (down V from the car) instead of the target, the better seed
-    # by J kept. What V's way gives the default; a shape sized to the target from a car
-    # across the road runs into a wall (``mirror-cold``; added on 2026-12-04).
+    # shape sized to its own goal (down V from the car) instead of the target, where that
+    # seed's merit (J, its penetration priced) is lower. What V's way gives the default; a shape
+    # sized to the target from a car across the road runs into a wall (``mirror-cold``; 2026-12-04).
     value_goal_shapes: bool = False
 
 
