@@ -36,7 +36,7 @@ def _rate_by(df: pd.DataFrame, col: str) -> pd.Series:
 
 def fig_success_by_type(df, planners, out: Path) -> Path:
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(6, 3.5))
+    fig, ax = plt.subplots(figsize=(7.2, 3.5))
     w = 0.8 / max(len(planners), 1)
     for j, p in enumerate(planners):
         d = df[df["planner"] == p]
@@ -46,7 +46,7 @@ def fig_success_by_type(df, planners, out: Path) -> Path:
     ax.set_xticks(np.arange(3) + w * (len(planners) - 1) / 2, TYPES)
     ax.set_ylabel("success rate [%]")
     ax.set_ylim(0, 100)
-    ax.legend()
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)  # beside the bars, not over them
     ax.set_title("Success rate per parking type (paper Fig. 20)")
     return _save(fig, out / "success_by_type.png")
 
@@ -138,10 +138,12 @@ def fig_efficiency(df, planners, out: Path) -> Path:
             for p in planners:
                 v = ok.loc[(ok["planner"] == p) & (ok["parking_type"] == t), col].dropna().values
                 data.append(v if len(v) else [np.nan])
-                labels.append(f"{t}\n{p}")
+                labels.append(f"{p} ({t})")
         ax.boxplot(data, tick_labels=labels)
         ax.set_ylabel(label)
-        ax.tick_params(axis="x", labelsize=7)
+        ax.tick_params(axis="x", labelsize=7, labelrotation=35)  # one label per box: upright they overlap
+        for tick in ax.get_xticklabels():
+            tick.set_horizontalalignment("right")
     fig.suptitle("Completion efficiency over successful episodes (paper Fig. 25)")
     return _save(fig, out / "efficiency.png")
 
