@@ -5,7 +5,8 @@ out of it (``planners/common/turns.py``: full-lock arcs in alternating gears, ea
 until it would come within a clearance). This prints, per parallel slot length of the
 full grid up to ``--max-length``, whether such a turn leaves the slot within ``--arcs``
 arcs (its heading turns past 45 degrees), how many arcs that takes and how many of them are
-shorter than 10 cm, at the cost to go's settings and at finer ones. It says why no
+shorter than 10 cm, at the cost to go's settings and at finer ones, on the widest road of
+the grid (4.5 m), where the road's far side is least in the way. It says why no
 planner here parks the shortest slots that admit an ISO pose.
 
     python scripts/in_slot_escape.py [--max-length 4.62] [--arcs 100]
@@ -63,7 +64,7 @@ def main() -> None:
     slots = {}
     for sc in from_sample("full"):
         if sc.parking_type.value == "parallel" and sc.slot_length <= a.max_length + 1e-9:
-            slots.setdefault(round(sc.slot_length, 2), sc)  # the slot and its neighbours do not depend on the road
+            slots.setdefault(round(sc.slot_length, 2), sc)  # the grid lists the widest road first: least in the way
     print(f"turns out of the target of a parallel slot, at most {a.arcs} arcs: arcs to 45 deg (of them under 10 cm)")
     for sl, sc in sorted(slots.items()):
         g = sc.build()
