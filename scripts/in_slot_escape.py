@@ -64,7 +64,9 @@ def main() -> None:
     slots = {}
     for sc in from_sample("full"):
         if sc.parking_type.value == "parallel" and sc.slot_length <= a.max_length + 1e-9:
-            slots.setdefault(round(sc.slot_length, 2), sc)  # the grid lists the widest road first: least in the way
+            key = round(sc.slot_length, 2)
+            if key not in slots or sc.road_width > slots[key].road_width:  # the widest road: least in the way
+                slots[key] = sc
     print(f"turns out of the target of a parallel slot, at most {a.arcs} arcs: arcs to 45 deg (of them under 10 cm)")
     for sl, sc in sorted(slots.items()):
         g = sc.build()
