@@ -1,6 +1,8 @@
 """How far each linearised model's prediction lies from the truth: the first planning call
 of every smoke case, planned with the paper's fixed-angle linearisation (Eqs. 22-32,
-``mirror-paper``) and with the Jacobians about each rollout (SCP, ``mirror-multistart``).
+``mirror-paper``: as before 2026-12-05, 1 m/s in its speed terms about the mean of the
+start and goal headings, and as now, the previous round's speeds and mean heading) and
+with the Jacobians about each rollout (SCP, ``mirror-multistart``).
 
 For every QP solved in that call, the states the QP predicts are compared with the
 truth model's rollout of the same commands (in the planned frame): the largest position
@@ -25,7 +27,10 @@ from planners.mirror.frames import XI_TH, to_planned
 from planners.mirror.planner import MirrorPlanner
 
 VARIANTS = {
-    "paper (fixed angle, Eqs. 22-32)": paper_config(),
+    "paper, 1 m/s and the ends' mean heading (before 2026-12-05)": paper_config(
+        paper_speed="nominal", paper_angle="ends"
+    ),
+    "paper, the previous round's speeds and mean heading": paper_config(),
     "SCP (Jacobians about each rollout)": multistart_config(),
 }
 

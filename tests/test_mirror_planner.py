@@ -380,6 +380,30 @@ def test_the_papers_linearised_model_against_a_step_by_hand():
     assert nxt[1] == pytest.approx(2.0 + 1.0 * g2 * 0.1, abs=1e-12)
 
 
+def test_the_papers_model_takes_each_steps_own_speed():
+    """Eq. (31)'s A_i holds v_i: given one speed per step (``paper_speed="previous"``),
+    step i uses its own in the theta terms of Eqs. (22)-(23) and in Eq. (24), and a
+    constant profile gives the scalar form's model."""
+    from planners.mirror.model import PlanningModel
+
+    model = PlanningModel(P, 0.1, 2)
+    A_, B_, c_ = model.paper_linearisation(3, 0.25, np.array([1.0, 2.0, -0.5]))
+    xi, u = np.array([1.0, 2.0, 0.3, 1.2, 0.5, 0.1]), np.array([0.8, -0.2])
+    ca, sa = 0.9689124217106447, 0.24740395925452294  # cos 0.25, sin 0.25
+    for i, vn in ((1, 2.0), (2, -0.5)):
+        nxt = A_[i] @ xi + B_[i] @ u + c_[i]
+        by_hand = [
+            1.0 + 0.1 * (1.2 * ca - vn * sa * 0.05),
+            2.0 + 0.1 * (1.2 * sa + vn * ca * 0.05),
+            0.3 + 0.1 * vn * 0.1 / 2.5,
+        ]
+        np.testing.assert_allclose(nxt[:3], by_hand, atol=1e-12)
+    for got, want in zip(
+        model.paper_linearisation(3, 0.25, np.full(3, -1.0)), model.paper_linearisation(3, 0.25, -1.0)
+    ):
+        np.testing.assert_array_equal(got, want)
+
+
 def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_meets(monkeypatch):
     """The first MIQP of a real planning call (a parallel start at +40 deg) with five or more
     disjunctions, cut down to as many of them as enumeration can take (<= 4,096 assignments;
@@ -515,13 +539,12 @@ def test_mirror_multistart_parks_a_fixed_case_of_each_type(case_id):
 @pytest.mark.parametrize(
     "case_id",
     [
+        "parallel_rw3.50_sl6.42_sw2.50_th+10_y1.50",
         "reverse_rw7.00_sl4.82_sw2.32_th+40_y3.00",
-        "angle_rw3.50_sl4.82_sw3.12_th+0_y1.10",  # 7 switches
-        # No parallel case: mirror-paper parks none of the smoke sample's parallel cases nor
-        # the easiest grid starts tried (docs/mirror_planner.md says why).
+        "angle_rw3.50_sl4.82_sw3.12_th+0_y1.10",
     ],
 )
-def test_mirror_paper_parks_a_fixed_reverse_and_angle_case(case_id):
+def test_mirror_paper_parks_a_fixed_case_of_each_type(case_id):
     """The paper's method as written (fixed-angle linearisation, no guide) parks these."""
     policy = MirrorPolicy(paper_config(time_limit_s=NO_NET))  # the registry's "mirror-paper"
     info, _ = run_episode(gym.make("MirrorPark-v0").unwrapped, policy, case_id)

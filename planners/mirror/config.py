@@ -26,6 +26,18 @@ class MirrorPlannerConfig(StrictModel):
     dt: float = Field(0.1, gt=0, le=1)
     model_substeps: int = Field(2, ge=1, le=20)
     linearisation: Literal["scp", "paper"] = "scp"
+    # The speed inside the paper model's v gamma and v / l terms (Eq. 31's A_i; the paper
+    # leaves it open): "nominal", 1 m/s in the plan's gear at every step; "previous", each
+    # step's speed in the previous round's rollout (1 m/s in the first round), the rounds
+    # going on until the rollout is clear and its speeds stay within ``paper_speed_tolerance``.
+    paper_speed: Literal["nominal", "previous"] = "nominal"
+    paper_speed_tolerance: float = Field(0.1, gt=0)  # [m/s]
+    paper_speed_floor: float = Field(0.0, ge=0, le=3)  # [m/s] "previous": at least this, in the plan's gear
+    # Its linearising angle ("close to the average yaw angle of the parking path", Fig. 13):
+    # "ends", the mean of the start and goal headings; "previous", from the second round on,
+    # the mean heading of the previous round's rollout (what the path turned out to be).
+    paper_angle: Literal["ends", "previous"] = "ends"
+    paper_angle_tolerance: float = Field(0.02, gt=0)  # [rad]
     max_iterations: int = Field(6, ge=1, le=1000)  # SCP + Algorithm I rounds per candidate
     max_trust_scale: float = Field(64.0, gt=0)  # give up on a candidate when the trust penalty grows past this
     w_trust_position: float = Field(0.5, ge=0)  # SCP trust region, as a penalty per m^2 of planned x, y moved
@@ -134,8 +146,12 @@ def multistart_config(**changes) -> MirrorPlannerConfig:
 
 def paper_config(**changes) -> MirrorPlannerConfig:
     """``mirror-paper``: the multi-start with the paper's fixed-angle linearisation
-    (Eqs. 22-32) in place of SCP's Jacobians about each rollout."""
-    return multistart_config(**{"linearisation": "paper", **changes})
+    (Eqs. 22-32) in place of SCP's Jacobians about each rollout. Where the paper leaves
+    them open, the speed in its v terms and the linearising angle come from the previous
+    round's rollout (its speeds, its mean heading; docs/mirror_planner.md)."""
+    return multistart_config(
+        **{"linearisation": "paper", "paper_speed": "previous", "paper_angle": "previous", **changes}
+    )
 
 
 class MirrorPolicyConfig(StrictModel):

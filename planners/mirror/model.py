@@ -67,8 +67,9 @@ class PlanningModel:
         c_ = f[0] - np.einsum("nij,nj->ni", A_, xi_ref[:n]) - np.einsum("nij,nj->ni", B_, u_ref)
         return A_, B_, c_
 
-    def paper_linearisation(self, n: int, angle: float, v_nominal: float):
-        """Eqs. (22)-(29) about the linearising ``angle`` with nominal speed ``v_nominal``.
+    def paper_linearisation(self, n: int, angle: float, v_nominal: float | np.ndarray):
+        """Eqs. (22)-(29) about the linearising ``angle`` with speed ``v_nominal`` in the
+        speed terms: one number, or one per step (the speed v_i of Eq. 31's A_i).
 
         The paper's gamma_1 v = (cos A - sin A (theta - A)) v is bilinear in v and theta;
         its first-order expansion about (v_nominal, A) keeps gamma_1(A) = cos A on v and
@@ -76,13 +77,14 @@ class PlanningModel:
         angle could not move the car sideways at all. Eq. (24) uses v_nominal as printed.
         """
         p, dt = self.params, self.dt
+        v = np.broadcast_to(np.asarray(v_nominal, float), (n,))
         ca, sa = math.cos(angle), math.sin(angle)
         A_ = np.tile(np.eye(NX), (n, 1, 1))
         A_[:, X, V] = dt * ca
-        A_[:, X, TH] = -dt * v_nominal * sa
+        A_[:, X, TH] = -dt * v * sa
         A_[:, Y, V] = dt * sa
-        A_[:, Y, TH] = dt * v_nominal * ca
-        A_[:, TH, D] = dt * v_nominal / p.wheelbase
+        A_[:, Y, TH] = dt * v * ca
+        A_[:, TH, D] = dt * v / p.wheelbase
         A_[:, V, A] = dt
         A_[:, A, A] = 1 - dt / p.tau_a
         A_[:, D, D] = 1 - dt / p.tau_delta
@@ -90,6 +92,6 @@ class PlanningModel:
         B_[:, A, 0] = dt / p.tau_a
         B_[:, D, 1] = dt / p.tau_delta
         c_ = np.zeros((n, NX))
-        c_[:, X] = dt * v_nominal * sa * angle
-        c_[:, Y] = -dt * v_nominal * ca * angle
+        c_[:, X] = dt * v * sa * angle
+        c_[:, Y] = -dt * v * ca * angle
         return A_, B_, c_

@@ -35,7 +35,7 @@ from mirrorpark_env.vehicle import TruthModel, VehicleState
 from ..base import PlanStats
 from .checks import Checks, Start, converged_to, same_pose
 from .config import MirrorPlannerConfig
-from .frames import FLIP, XI_TH, planned_controls, real_commands, to_planned
+from .frames import FLIP, XI_TH, XI_V, planned_controls, real_commands, to_planned
 from .guide import GuideSearch, prepared_search
 from .mirror_line import MirrorLine, SwitchBand, band_margin, mirror_line, switch_band
 from .model import PlanningModel
@@ -46,6 +46,39 @@ from .seeds import GuidedSeed, ShapeSeeds
 from .solvers import BranchAndBound, PiqpQP
 from .value import cost_to_go
 from .value_plan import ValuePlanning
+
+
+class _PaperModel:
+    """Eqs. (22)-(32) for one candidate: about its linearising angle, with a speed per step
+    in the v terms. Both start as 1 m/s in the plan's gear about the mean of the start and
+    goal headings; ``paper_speed`` / ``paper_angle`` = "previous" take them from each
+    round's rollout (the paper leaves the speed open and draws the angle, Fig. 13, "close
+    to the average yaw angle of the parking path")."""
+
+    def __init__(self, planner: MirrorPlanner, cand: Candidate, angle: float):
+        self.pl, self.cand, self.angle = planner, cand, angle
+        self.v = np.full(planner.N, 1.0 * cand.direction)
+        self.lin = planner.model.paper_linearisation(planner.N, angle, self.v)
+
+    def update(self, real: np.ndarray) -> bool:
+        """Re-linearise about a rollout (half steps, real frame); True: nothing moved
+        beyond the config's tolerances (or nothing is taken from rollouts)."""
+        cfg, d = self.pl.cfg, self.cand.direction
+        if cfg.paper_speed == "nominal" and cfg.paper_angle == "ends":
+            return True
+        planned = to_planned(real, self.cand, cfg.model_substeps)
+        settled = True
+        if cfg.paper_speed == "previous":  # Eq. (31)'s v_i: the speeds just driven
+            v = d * np.maximum(d * planned[: self.pl.N, XI_V], cfg.paper_speed_floor)
+            settled = float(np.max(np.abs(v - self.v))) <= cfg.paper_speed_tolerance
+            self.v = v
+        if cfg.paper_angle == "previous":  # the average yaw of the path just driven
+            angle = float(np.mean(planned[:, XI_TH]))
+            settled = settled and abs(angle - self.angle) <= cfg.paper_angle_tolerance
+            self.angle = angle
+        if not settled:
+            self.lin = self.pl.model.paper_linearisation(self.pl.N, self.angle, self.v)
+        return settled
 
 
 @dataclass(frozen=True, eq=False)
@@ -287,7 +320,8 @@ class MirrorPlanner:
         mirror = cand.direction == self.shape_seeds.first_direction and not band
         ref: _Reference | None = None
         if paper:  # the paper's scheme: one model about a fixed angle, Algorithm I until clear
-            lin = self.model.paper_linearisation(self.N, 0.5 * (xi0[XI_TH] + theta_t), 1.0 * cand.direction)
+            paper_model = _PaperModel(self, cand, 0.5 * (xi0[XI_TH] + theta_t))
+            lin = paper_model.lin
         else:
             # Seed: a moving reference of the manoeuvre's shape. (The paper's form,
             # Eqs. 22-27, moves the car at its nominal speed even where the real speed is
@@ -330,7 +364,9 @@ class MirrorPlanner:
             for i, k in hits:  # Algorithm I on the new solution too, accepted or not
                 theta_set[(i, k)] = None
             if paper:
-                if not hits:
+                settled = paper_model.update(real)
+                lin = paper_model.lin
+                if not hits and settled:
                     break
                 ref = new
                 continue
