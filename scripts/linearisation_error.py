@@ -45,8 +45,8 @@ def gaps(cfg: MirrorPlannerConfig, cases) -> np.ndarray:
         solved: list[np.ndarray] = []
         solve = planner._solve
 
-        def keep(qp, disj, active, preferred, st, solve=solve, solved=solved):
-            x = solve(qp, disj, active, preferred, st)
+        def keep(qp, disj, active, preferred, st, miqp, solve=solve, solved=solved):
+            x = solve(qp, disj, active, preferred, st, miqp)
             if x is not None:
                 solved.append(x)
             return x
