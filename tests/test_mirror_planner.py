@@ -404,6 +404,22 @@ def test_the_papers_model_takes_each_steps_own_speed():
         np.testing.assert_array_equal(got, want)
 
 
+def test_the_paper_models_open_choices_are_validated_by_name():
+    """``mirror-paper`` takes its speeds and angle from the previous round; the old choice
+    stays selectable, and a misspelt one is refused naming the field."""
+    from pydantic import ValidationError
+
+    from planners.mirror.config import MirrorPlannerConfig, paper_config
+
+    cfg = paper_config()
+    assert (cfg.linearisation, cfg.paper_speed, cfg.paper_angle) == ("paper", "previous", "previous")
+    assert MirrorPlannerConfig().linearisation == "scp"  # the default never takes the paper's model
+    with pytest.raises(ValidationError, match="paper_speed"):
+        paper_config(paper_speed="last")
+    with pytest.raises(ValidationError, match="paper_angle_tolerance"):
+        paper_config(paper_angle_tolerance=0.0)
+
+
 def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_meets(monkeypatch):
     """The first MIQP of a real planning call (a parallel start at +40 deg) with five or more
     disjunctions, cut down to as many of them as enumeration can take (<= 4,096 assignments;
