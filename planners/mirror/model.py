@@ -6,7 +6,7 @@ model's own discretisation (exact lags, exact arcs) with fewer sub-steps, so pla
 the environment agree to millimetres. Two linearisations (docs/design.md):
 
 - ``paper_linearisation``: Eqs. (22)-(29): heading linearised about a fixed angle,
-  nominal speed in the heading equation, forward-Euler lags;
+  a given speed (one, or one per step) in the v terms, forward-Euler lags;
 - ``jacobian_linearisation``: the exact Jacobians of the nonlinear step about a
   reference trajectory (sequential convex programming re-linearises about each solution).
 

@@ -320,6 +320,7 @@ class MirrorPlanner:
         mirror = cand.direction == self.shape_seeds.first_direction and not band
         ref: _Reference | None = None
         if paper:  # the paper's scheme: one model about a fixed angle, Algorithm I until clear
+            # (and, where its speeds or angle come from the last rollout, until they settle)
             paper_model = _PaperModel(self, cand, 0.5 * (xi0[XI_TH] + theta_t))
             lin = paper_model.lin
         else:
