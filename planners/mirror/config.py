@@ -148,10 +148,11 @@ def paper_config(**changes) -> MirrorPlannerConfig:
     """``mirror-paper``: the multi-start with the paper's fixed-angle linearisation
     (Eqs. 22-32) in place of SCP's Jacobians about each rollout. Where the paper leaves
     them open, the speed in its v terms and the linearising angle come from the previous
-    round's rollout (its speeds, its mean heading; docs/mirror_planner.md)."""
-    return multistart_config(
-        **{"linearisation": "paper", "paper_speed": "previous", "paper_angle": "previous", **changes}
-    )
+    round's rollout (its speeds, its mean heading; docs/mirror_planner.md). Algorithm I
+    runs up to 12 rounds per candidate, twice the multi-start's: its rounds also wait for
+    those numbers to settle (32.8 % of the ablation's cases against 27.6 % with 6)."""
+    base = {"linearisation": "paper", "paper_speed": "previous", "paper_angle": "previous", "max_iterations": 12}
+    return multistart_config(**{**base, **changes})
 
 
 class MirrorPolicyConfig(StrictModel):
