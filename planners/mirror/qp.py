@@ -102,8 +102,10 @@ class MirrorQP:
         self._switch_rows(rows, s, line, s is not None and mirror, band if s is not None else None)
         if theta_set and ref_real is not None:
             self.obstacles.add(rows, cand, ref_real, theta_set)
-        # Every row is soft: row + slack >= lower bound, slack >= 0 at w_slack per m (an
-        # exact penalty). No QP is infeasible; the exact footprint check decides.
+        # Every row's lower side is soft: row + slack >= lower bound, slack >= 0 at w_slack
+        # per m (an exact penalty); the exact footprint check decides. Hard are the variable
+        # bounds (a car still rolling back has no forward plan) and the fixed line's upper
+        # side (a parallel switch at most 2 cm past it): there a candidate has no solution.
         n_s = len(rows.h_l)
         nz = self.nz + n_s
         G = self._inequalities(rows, n_s, nz)
