@@ -409,8 +409,6 @@ def test_the_paper_models_open_choices_are_validated_by_name():
     stays selectable, and a misspelt one is refused naming the field."""
     from pydantic import ValidationError
 
-    from planners.mirror.config import MirrorPlannerConfig, paper_config
-
     cfg = paper_config()
     assert (cfg.linearisation, cfg.paper_speed, cfg.paper_angle) == ("paper", "previous", "previous")
     assert MirrorPlannerConfig().linearisation == "scp"  # the default never takes the paper's model
