@@ -566,6 +566,24 @@ def test_mirror_paper_parks_a_fixed_case_of_each_type(case_id):
     assert not any(s.detail.get("guided") for s in policy.stats)
 
 
+def test_mirror_paper_refines_four_candidates_in_parallel_slots_and_two_elsewhere():
+    """In parallel slots the shape seeds' ranking misleads the paper's model: here the third
+    candidate refined is the cheapest plan by far, and with it the car parks."""
+    policy = MirrorPolicy(paper_config(time_limit_s=NO_NET))
+    info, _ = run_episode(gym.make("MirrorPark-v0").unwrapped, policy, "parallel_rw4.50_sl7.12_sw2.50_th+20_y2.00")
+    assert info["is_success"], (info["failed_criterion"], info["vehicle_state"])
+    costs = [c for _, c, _ in policy.stats[0].detail["candidates"]]
+    assert len(costs) == 4 and policy.stats[0].cost == pytest.approx(min(costs), abs=1e-3)
+    assert min(costs) < 0.5 * min(costs[:2])  # 84 against 581
+
+    tried = []
+    for parallel in (4, None):  # a reverse slot: the parallel setting changes nothing
+        policy = MirrorPolicy(paper_config(time_limit_s=NO_NET, refine_candidates_parallel=parallel))
+        run_episode(gym.make("MirrorPark-v0").unwrapped, policy, "reverse_rw5.00_sl4.82_sw2.57_th-10_y3.50")
+        tried.append(policy.stats[0].detail["candidates"])
+    assert len(tried[0]) == 2 and tried[0] == tried[1]
+
+
 @pytest.mark.slow
 def test_a_parallel_slot_of_118_car_lengths_parks_by_turns_inside_it():
     """4.52 m for a 3.82 m car: the way in is the in-slot multi-point turn (12 arcs at most),

@@ -29,7 +29,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from mirrorpark_env.angles import unwrap_near
-from mirrorpark_env.scenario import ScenarioGeometry
+from mirrorpark_env.scenario import ParkingType, ScenarioGeometry
 from mirrorpark_env.vehicle import TruthModel, VehicleState
 
 from ..base import PlanStats
@@ -116,6 +116,9 @@ class MirrorPlanner:
         self._guide: GuideSearch | None = None  # built by prepare() (the policy: at reset)
         self._value: ValuePlanning | None = None  # the value mode (cfg.value), built by prepare()
         self.last_stats: PlanStats | None = None  # the latest call's, a failed one's too
+        parallel = geometry.parking_type is ParkingType.PARALLEL
+        by_type = cfg.refine_candidates_parallel if parallel else None
+        self._refine_candidates = by_type or cfg.refine_candidates  # the multi-start's, for this slot
 
     @property
     def guided(self) -> bool:
@@ -257,7 +260,7 @@ class MirrorPlanner:
         net = False
         tried = []
         for n, (cand, seed) in enumerate(seeds):
-            if n >= (refine or self.cfg.refine_candidates) and best is not None and best.cost < 0.9 * stay:
+            if n >= (refine or self._refine_candidates) and best is not None and best.cost < 0.9 * stay:
                 break  # refine the best few; go on down the list while none is clear and progressing
             plan, st = self.solve_candidate(xi0, cand, goal, start, line, seed, iterations, miqp=miqp)
             for k in totals:
