@@ -93,6 +93,8 @@ class MirrorQP:
         s = cand.switch
         vals, b = self._equalities(xi0, cand, lin)
         x_l, x_u = self.box(cand)
+        if cfg.stop_first and cand.direction * xi0[XI_V] < 0:
+            x_l, x_u = self._stopping_start(xi0, cand, lin, x_l, x_u)
         if trust and ref_real is not None:  # penalty w (z - z_ref)^2: its linear part
             pl = to_planned(ref_real, cand, cfg.model_substeps)
             c = c.copy()
@@ -117,6 +119,27 @@ class MirrorQP:
         x_u = np.concatenate([x_u, np.full(n_s, np.inf)])
         qp = QP(P, c, A, b, G, np.array(rows.h_l, float), np.array(rows.h_u, float), x_l, x_u)
         return qp, rows.disj, np.array(rows.active, float), rows.preferred
+
+    def _stopping_start(self, xi0: np.ndarray, cand: Candidate, lin, x_l: np.ndarray, x_u: np.ndarray):
+        """Speed bounds of a car still rolling against the plan's gear: until it can have
+        stopped (the model's fastest stop, full command toward the gear) its speed may keep
+        that stop's sign and size; from then on the gear's bound holds. Without this a car
+        creeping back at 2 cm/s has no forward plan at all (the bound fails at step 1)."""
+        A_, B_, c_ = lin
+        d = cand.direction
+        u = np.array([self.p.a_max if d > 0 else self.p.a_min, xi0[XI_D]])
+        last = cand.switch if cand.switch is not None else self.N
+        xi, x_l, x_u = xi0.copy(), x_l.copy(), x_u.copy()
+        for k in range(last):
+            xi = A_[k] @ xi + B_[k] @ u + c_[k]
+            if d * xi[XI_V] >= 0 or k + 1 == last:
+                break
+            j = self.x_index[k + 1, XI_V]
+            if d > 0:
+                x_l[j] = xi[XI_V]
+            else:
+                x_u[j] = xi[XI_V]
+        return x_l, x_u
 
     def _equalities(self, xi0: np.ndarray, cand: Candidate, lin) -> tuple[np.ndarray, np.ndarray]:
         """Values and right-hand side of: initial state, dynamics (flip at the switch), switch link."""
