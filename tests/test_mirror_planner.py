@@ -128,15 +128,15 @@ def test_qp_solution_satisfies_dynamics_and_bounds():
 def test_a_car_still_rolling_back_gets_a_forward_plan_once_it_may_stop_first():
     """Creeping back at 4.5 cm/s, the lag still braking (+0.2 m/s^2): whatever the command,
     the paper's model (forward Euler) has v_1 = -0.045 + 0.1 x 0.2 = -0.025 m/s, so with the
-    forward gear's v >= 0 from step 1 no forward plan exists. ``stop_first`` lets step 1 keep
+    forward gear's v >= 0 from step 1 no forward plan exists. ``stop_first_speed`` lets step 1 keep
     that speed; from step 2 (v_2 = -0.025 + 0.1 x 1.133 > 0 at full command) the gear's bound holds."""
     g = Scenario.from_degrees("parallel", 4.5, 6.0, 2.5, 0, 2.0).build()
     xi0 = g.start.as_array()
     xi0[3], xi0[4] = -0.045, 0.2
     cand = Candidate(1, None)
     results = []
-    for stop_first in (False, True):
-        pl = MirrorPlanner(g, paper_config(stop_first=stop_first))
+    for stop_first in (0.0, 0.05):
+        pl = MirrorPlanner(g, paper_config(stop_first_speed=stop_first))
         lin = pl.model.paper_linearisation(pl.N, 0.0, 1.0)
         qp, _, _, _ = pl.qp.build(xi0, cand, pl.qp.cost(cand, np.array(g.target), 0.0), lin, None, {}, pl.line, False)
         results.append((qp, PiqpQP().solve(qp), pl.qp.x_index))

@@ -91,10 +91,10 @@ class MirrorPlannerConfig(StrictModel):
     # frame, direction x a_N >= 0). Without it a plan may stop while still braking, and the lag
     # rolls the car back across zero: a direction switch of a centimetre that the env counts.
     end_settled: bool = True
-    # A car still rolling against a candidate's gear (|v| under the policy's idle speed, the
-    # lag still pushing) may keep rolling until the model's fastest stop has stopped it;
-    # False: the gear's speed bound holds from the first step, and no such candidate exists.
-    stop_first: bool = False
+    # [m/s] A car rolling against a candidate's gear slower than this (creeping, its lag
+    # still pushing) may roll on until the model's fastest stop has stopped it; else the
+    # gear's speed bound holds from the first step and no such candidate exists (0: never).
+    stop_first_speed: float = Field(0.0, ge=0, le=1)
     value_lattice: ValueConfig = ValueConfig(headings=120, switch_cost=5.0)
     value_candidates: int = Field(3, ge=1, le=20)  # switch candidates refined where V is blind
     value_updates: int = Field(2, ge=1, le=10)  # solves of the leading candidate, its goal moved down V each time

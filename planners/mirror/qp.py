@@ -93,7 +93,7 @@ class MirrorQP:
         s = cand.switch
         vals, b = self._equalities(xi0, cand, lin)
         x_l, x_u = self.box(cand)
-        if cfg.stop_first and cand.direction * xi0[XI_V] < 0:
+        if -cfg.stop_first_speed < cand.direction * xi0[XI_V] < 0:
             x_l, x_u = self._stopping_start(xi0, cand, lin, x_l, x_u)
         if trust and ref_real is not None:  # penalty w (z - z_ref)^2: its linear part
             pl = to_planned(ref_real, cand, cfg.model_substeps)
@@ -121,7 +121,7 @@ class MirrorQP:
         return qp, rows.disj, np.array(rows.active, float), rows.preferred
 
     def _stopping_start(self, xi0: np.ndarray, cand: Candidate, lin, x_l: np.ndarray, x_u: np.ndarray):
-        """Speed bounds of a car still rolling against the plan's gear: until it can have
+        """Speed bounds of a car still creeping against the plan's gear: until it can have
         stopped (the model's fastest stop, full command toward the gear) its speed may keep
         that stop's sign and size; from then on the gear's bound holds. Without this a car
         creeping back at 2 cm/s has no forward plan at all (the bound fails at step 1)."""
