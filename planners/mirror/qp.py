@@ -106,8 +106,9 @@ class MirrorQP:
             self.obstacles.add(rows, cand, ref_real, theta_set)
         # Every row's lower side is soft: row + slack >= lower bound, slack >= 0 at w_slack
         # per m (an exact penalty); the exact footprint check decides. Hard are the variable
-        # bounds (a car still rolling back has no forward plan) and the fixed line's upper
-        # side (a parallel switch at most 2 cm past it): there a candidate has no solution.
+        # bounds (a car rolling back has no forward plan, but for ``stop_first_speed``) and
+        # the fixed line's upper side (a parallel switch at most 2 cm past it): there a
+        # candidate has no solution.
         n_s = len(rows.h_l)
         nz = self.nz + n_s
         G = self._inequalities(rows, n_s, nz)
