@@ -427,6 +427,24 @@ def test_the_papers_model_takes_each_steps_own_speed():
         np.testing.assert_array_equal(got, want)
 
 
+def test_the_paper_model_started_from_the_seed_moves_a_candidate_that_nominal_speed_freezes():
+    """At 1 m/s in its v terms the paper's model turns the car by steering alone, so the
+    first round's optimum stands still; the next round takes that rollout's zero speeds and
+    the model can no longer turn the car at all. Started from the candidate's shape seed
+    (speeds and mean heading of its rollout) the same candidate drives 2 m/s."""
+    env = gym.make("MirrorPark-v0").unwrapped
+    _, info = env.reset(options={"scenario": "parallel_rw4.50_sl5.12_sw2.50_th-10_y1.90"})
+    speeds = {}
+    for first in ("nominal", "seed"):
+        pl = MirrorPlanner(info["geometry"], paper_config(time_limit_s=NO_NET, paper_first=first))
+        plan = pl.plan(info["vehicle_state"], [Candidate(-1, 39)])
+        assert plan is not None
+        speeds[first] = np.abs(plan.states[:, 3]).max()
+        if first == "nominal":
+            assert plan.cost >= 0.999 * pl.last_stats.detail["stay_cost"]  # no better than standing
+    assert speeds["nominal"] < 1e-3 and speeds["seed"] > 2.0
+
+
 def test_the_paper_models_open_choices_are_validated_by_name():
     """``mirror-paper`` takes its speeds and angle from the previous round; the old choice
     stays selectable, and a misspelt one is refused naming the field."""
@@ -439,6 +457,10 @@ def test_the_paper_models_open_choices_are_validated_by_name():
         paper_config(paper_speed="last")
     with pytest.raises(ValidationError, match="paper_angle_tolerance"):
         paper_config(paper_angle_tolerance=0.0)
+    with pytest.raises(ValidationError, match="paper_first"):
+        paper_config(paper_first="guide")
+    with pytest.raises(ValidationError, match="stop_first_speed"):
+        paper_config(stop_first_speed=-0.1)
 
 
 def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_meets(monkeypatch):

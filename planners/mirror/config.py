@@ -38,6 +38,9 @@ class MirrorPlannerConfig(StrictModel):
     # the mean heading of the previous round's rollout (what the path turned out to be).
     paper_angle: Literal["ends", "previous"] = "ends"
     paper_angle_tolerance: float = Field(0.02, gt=0)  # [rad]
+    # The first round's speeds and angle ("previous" only): "nominal", 1 m/s about the ends'
+    # mean heading; "seed", those of the candidate's shape seed rollout, as a round zero.
+    paper_first: Literal["nominal", "seed"] = "nominal"
     max_iterations: int = Field(6, ge=1, le=1000)  # SCP + Algorithm I rounds per candidate
     max_trust_scale: float = Field(64.0, gt=0)  # give up on a candidate when the trust penalty grows past this
     w_trust_position: float = Field(0.5, ge=0)  # SCP trust region, as a penalty per m^2 of planned x, y moved

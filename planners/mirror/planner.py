@@ -325,6 +325,8 @@ class MirrorPlanner:
         if paper:  # the paper's scheme: one model about a fixed angle, Algorithm I until clear
             # (and, where its speeds or angle come from the last rollout, until they settle)
             paper_model = _PaperModel(self, cand, 0.5 * (xi0[XI_TH] + theta_t))
+            if cfg.paper_first == "seed" and seed is not None:
+                paper_model.update(seed)  # the seed's rollout as round zero
             lin = paper_model.lin
         else:
             # Seed: a moving reference of the manoeuvre's shape. (The paper's form,
