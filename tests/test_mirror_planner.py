@@ -598,7 +598,7 @@ def test_mirror_multistart_parks_a_fixed_case_of_each_type(case_id):
 @pytest.mark.parametrize(
     "case_id",
     [
-        "parallel_rw3.50_sl6.42_sw2.50_th+10_y1.50",
+        "parallel_rw3.50_sl6.72_sw2.50_th+10_y1.10",
         "reverse_rw7.00_sl4.82_sw2.32_th+40_y3.00",
         "angle_rw3.50_sl4.82_sw3.12_th+0_y1.10",
     ],

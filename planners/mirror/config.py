@@ -160,13 +160,16 @@ def paper_config(**changes) -> MirrorPlannerConfig:
     runs up to 12 rounds per candidate, twice the multi-start's: its rounds also wait for
     those numbers to settle (32.8 % of the ablation's cases against 27.6 % with 6). In
     parallel slots four candidates are refined, not two (15.5 % -> 23.8 % of the ablation's
-    parallel cases; reverse and angle lose with four, docs/mirror_planner.md)."""
+    parallel cases; reverse and angle lose with four). The first round's speeds and angle
+    come from the candidate's shape seed: at 1 m/s the model turns a standing car, and the
+    rounds froze at zero speed (35.6 % -> 42.0 %; docs/mirror_planner.md)."""
     base = {
         "linearisation": "paper",
         "paper_speed": "previous",
         "paper_angle": "previous",
         "max_iterations": 12,
         "refine_candidates_parallel": 4,
+        "paper_first": "seed",
     }
     return multistart_config(**{**base, **changes})
 
