@@ -162,7 +162,9 @@ def paper_config(**changes) -> MirrorPlannerConfig:
     parallel slots four candidates are refined, not two (15.5 % -> 23.8 % of the ablation's
     parallel cases; reverse and angle lose with four). The first round's speeds and angle
     come from the candidate's shape seed: at 1 m/s the model turns a standing car, and the
-    rounds froze at zero speed (35.6 % -> 42.0 %; docs/mirror_planner.md)."""
+    rounds froze at zero speed (35.6 % -> 42.0 %). A car still creeping (under 5 cm/s)
+    against a candidate's gear may stop first: its plans end with the lag still pushing,
+    and the gear's bound from step 1 left it no plan the other way (docs/mirror_planner.md)."""
     base = {
         "linearisation": "paper",
         "paper_speed": "previous",
@@ -170,6 +172,7 @@ def paper_config(**changes) -> MirrorPlannerConfig:
         "max_iterations": 12,
         "refine_candidates_parallel": 4,
         "paper_first": "seed",
+        "stop_first_speed": 0.05,
     }
     return multistart_config(**{**base, **changes})
 
