@@ -445,6 +445,52 @@ def test_the_paper_model_started_from_the_seed_moves_a_candidate_that_nominal_sp
     assert speeds["nominal"] < 1e-3 and speeds["seed"] > 2.0
 
 
+def test_the_model_error_shifts_each_obstacle_row_by_what_the_rollout_made_of_it():
+    """``paper_correction``: an obstacle row r (G_r z >= lower_r, linearised about the last
+    rollout) is shifted to G_r z >= lower_r - G_r e, with e the rollout minus the QP's
+    prediction, so the row holds on the rollout where it held on the prediction. Switch rows
+    and switched-off disjunction rows are left alone; a disjunction's enforced bound moves too."""
+    env = gym.make("MirrorPark-v0").unwrapped
+    _, info = env.reset(options={"scenario": "angle_rw3.50_sl4.82_sw2.82_th-10_y2.40"})
+    g, state = info["geometry"], info["vehicle_state"]
+    pl = MirrorPlanner(g, paper_config())
+    cand = Candidate(1, 45)
+    xi0 = state.as_array()
+    seed = pl.shape_seeds.seed(xi0, cand, pl.line)
+    pairs = {(i, k): None for i in range(30, pl.N + 1) for k in range(len(pl.qp.obstacles.faces))}
+    lin = pl.model.paper_linearisation(pl.N, 0.0, 1.0)
+    c = pl.qp.cost(cand, np.array(g.target), g.target[2])
+    rng = np.random.default_rng(0)
+    err = rng.normal(0.0, 0.05, pl.qp.nz)
+    (qp0, d0, a0, _), (qp1, d1, a1, _) = (
+        pl.qp.build(xi0, cand, c, lin, seed, pairs, pl.line, False, correction=e) for e in (None, err)
+    )
+    assert d0 == d1 and len(d0) > 0
+    shift = qp0.G[2:, : pl.qp.nz] @ err
+    assert np.abs(shift).max() > 0.01
+    np.testing.assert_allclose(a1[2:], a0[2:] - shift, atol=1e-12)
+    np.testing.assert_array_equal(a1[:2], a0[:2])  # the switch rows
+    off = qp0.h_l[2:] == INACTIVE  # disjunction rows: branch and bound enforces them
+    assert off.any() and not off.all()
+    np.testing.assert_array_equal(qp1.h_l[2:][off], INACTIVE)
+    np.testing.assert_allclose(qp1.h_l[2:][~off], (a0[2:] - shift)[~off], atol=1e-12)
+
+
+def test_with_the_model_error_corrected_a_frozen_candidate_clears_the_slots_neighbour():
+    """Without the correction the rounds of this candidate settle 5 mm from a neighbour
+    (the QP keeps 4 cm on the paper model; the check wants 1 cm on the rollout), and no clear
+    plan comes out; with it the rows hold on the rollout and the candidate has a clear plan,
+    confirmed by the truth model."""
+    env = gym.make("MirrorPark-v0").unwrapped
+    _, info = env.reset(options={"scenario": "angle_rw3.50_sl4.82_sw2.82_th-10_y2.40"})
+    found = {}
+    for corr in (False, True):
+        pl = MirrorPlanner(info["geometry"], paper_config(time_limit_s=NO_NET, paper_correction=corr))
+        found[corr] = pl.plan(info["vehicle_state"], [Candidate(1, 45)])
+    assert found[False] is None
+    assert found[True] is not None and found[True].collision_free
+
+
 def test_the_paper_models_open_choices_are_validated_by_name():
     """``mirror-paper`` takes its speeds and angle from the previous round; the old choice
     stays selectable, and a misspelt one is refused naming the field."""

@@ -35,7 +35,7 @@ from mirrorpark_env.vehicle import TruthModel, VehicleState
 from ..base import PlanStats
 from .checks import Checks, Start, converged_to, same_pose
 from .config import MirrorPlannerConfig
-from .frames import FLIP, XI_TH, XI_V, planned_controls, real_commands, to_planned
+from .frames import FLIP, XI_TH, XI_V, XI_X, XI_Y, planned_controls, real_commands, to_planned
 from .guide import GuideSearch, prepared_search
 from .mirror_line import MirrorLine, SwitchBand, band_margin, mirror_line, switch_band
 from .model import PlanningModel
@@ -59,11 +59,15 @@ class _PaperModel:
         self.pl, self.cand, self.angle = planner, cand, angle
         self.v = np.full(planner.N, 1.0 * cand.direction)
         self.lin = planner.model.paper_linearisation(planner.N, angle, self.v)
+        self.correction: np.ndarray | None = None  # ``paper_correction``: see ``model_error``
 
-    def update(self, real: np.ndarray) -> bool:
-        """Re-linearise about a rollout (half steps, real frame); True: nothing moved
-        beyond the config's tolerances (or nothing is taken from rollouts)."""
+    def update(self, real: np.ndarray, x: np.ndarray | None = None) -> bool:
+        """Re-linearise about a rollout (half steps, real frame) of the QP's solution ``x``
+        (None: a seed); True: nothing moved beyond the config's tolerances (or nothing is
+        taken from rollouts)."""
         cfg, d = self.pl.cfg, self.cand.direction
+        if cfg.paper_correction and x is not None:
+            self.correction = self.model_error(real, x)
         if cfg.paper_speed == "nominal" and cfg.paper_angle == "ends":
             return True
         planned = to_planned(real, self.cand, cfg.model_substeps)
@@ -79,6 +83,18 @@ class _PaperModel:
         if not settled:
             self.lin = self.pl.model.paper_linearisation(self.pl.N, self.angle, self.v)
         return settled
+
+    def model_error(self, real: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Rollout minus the QP's prediction of x, y, heading and S, in z's layout (the
+        slacks left out): what the obstacle rows miss by planning on the linear model."""
+        qp, cand = self.pl.qp, self.cand
+        err = np.zeros(qp.nz)
+        pl = to_planned(real, cand, self.pl.cfg.model_substeps)
+        for j in (XI_X, XI_Y, XI_TH):
+            err[qp.x_index[:, j]] = pl[:, j] - x[qp.x_index[:, j]]
+        if cand.switch is not None:
+            err[qp.iS : qp.iS + 2] = pl[cand.switch, :2] - x[qp.iS : qp.iS + 2]
+        return err
 
 
 @dataclass(frozen=True, eq=False)
@@ -337,6 +353,7 @@ class MirrorPlanner:
             # The seed is a plan too.
             ref, _, _ = self._score(real, u, cand, goal, theta_t, start, line, band, clear_plans)
         trust_scale = 1.0
+        correction = None  # paper_correction: the last round's model error at each row
         rounds = cfg.max_iterations if iterations is None else iterations
         for it in range(cfg.max_iterations):
             if it >= rounds and (clear_plans or not band):
@@ -359,6 +376,7 @@ class MirrorPlanner:
                 trust_scale=trust_scale,
                 band=rows,
                 terminal=terminal,
+                correction=correction,
             )
             x = self._solve(qp, disj, active, preferred, st, miqp or self.miqp)
             if x is None:
@@ -370,7 +388,8 @@ class MirrorPlanner:
             for i, k in hits:  # Algorithm I on the new solution too, accepted or not
                 theta_set[(i, k)] = None
             if paper:
-                settled = paper_model.update(real)
+                settled = paper_model.update(real, x)
+                correction = paper_model.correction
                 lin = paper_model.lin
                 if not hits and settled:
                     break

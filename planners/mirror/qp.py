@@ -84,11 +84,14 @@ class MirrorQP:
         trust_scale: float = 1.0,
         band: SwitchBand | None = None,
         terminal: Terminal | None = None,
+        correction: np.ndarray | None = None,
     ) -> tuple[QP, list[Disjunction], np.ndarray, list[int]]:
         """(QP, disjunctions, each row's enforced lower bound, preferred rows) of one round.
 
         The switch rows: ``band`` where given (with a switch), else the fixed ``line``
-        where ``mirror`` is on; neither: inactive. ``terminal``: as ``c`` was built."""
+        where ``mirror`` is on; neither: inactive. ``terminal``: as ``c`` was built.
+        ``correction``: the model's error (rollout minus prediction, in z's layout, slacks
+        left out) by which each obstacle row's bound is shifted."""
         cfg = self.cfg
         s = cand.switch
         vals, b = self._equalities(xi0, cand, lin)
@@ -102,6 +105,7 @@ class MirrorQP:
                 c[self.x_index[1:, j]] -= 2.0 * trust_scale * w * pl[1:, j]
         rows = Rows()
         self._switch_rows(rows, s, line, s is not None and mirror, band if s is not None else None)
+        n_switch = len(rows.h_l)
         if theta_set and ref_real is not None:
             self.obstacles.add(rows, cand, ref_real, theta_set)
         # Every row's lower side is soft: row + slack >= lower bound, slack >= 0 at w_slack
@@ -112,14 +116,19 @@ class MirrorQP:
         n_s = len(rows.h_l)
         nz = self.nz + n_s
         G = self._inequalities(rows, n_s, nz)
+        h_l, active = np.array(rows.h_l, float), np.array(rows.active, float)
+        if correction is not None and n_s > n_switch:
+            shift = G[n_switch:, : self.nz] @ correction  # what the error adds to each obstacle row
+            active[n_switch:] -= shift
+            h_l[n_switch:] = np.where(h_l[n_switch:] > INACTIVE, active[n_switch:], h_l[n_switch:])
         pattern, p_vals, t_vals = self._cost_entry(s, terminal)[3]
         P = pattern.matrix(p_vals + (trust_scale if trust else 0.0) * t_vals, (nz, nz))
         A = self._eq_pattern(s).matrix(vals, (self._n_dyn_rows + 2, nz))
         c = np.concatenate([c, np.full(n_s, cfg.w_slack)])
         x_l = np.concatenate([x_l, np.zeros(n_s)])
         x_u = np.concatenate([x_u, np.full(n_s, np.inf)])
-        qp = QP(P, c, A, b, G, np.array(rows.h_l, float), np.array(rows.h_u, float), x_l, x_u)
-        return qp, rows.disj, np.array(rows.active, float), rows.preferred
+        qp = QP(P, c, A, b, G, h_l, np.array(rows.h_u, float), x_l, x_u)
+        return qp, rows.disj, active, rows.preferred
 
     def _stopping_start(self, xi0: np.ndarray, cand: Candidate, lin, x_l: np.ndarray, x_u: np.ndarray):
         """Speed bounds of a car still creeping against the plan's gear: until it can have
