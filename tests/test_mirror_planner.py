@@ -449,7 +449,8 @@ def test_the_model_error_shifts_each_obstacle_row_by_what_the_rollout_made_of_it
     """``paper_correction``: an obstacle row r (G_r z >= lower_r, linearised about the last
     rollout) is shifted to G_r z >= lower_r - G_r e, with e the rollout minus the QP's
     prediction, so the row holds on the rollout where it held on the prediction. Switch rows
-    and switched-off disjunction rows are left alone; a disjunction's enforced bound moves too."""
+    and switched-off disjunction rows are left alone; a disjunction's enforced bound moves too.
+    "tighten" moves a row only where G_r e < 0."""
     env = gym.make("MirrorPark-v0").unwrapped
     _, info = env.reset(options={"scenario": "angle_rw3.50_sl4.82_sw2.82_th-10_y2.40"})
     g, state = info["geometry"], info["vehicle_state"]
@@ -474,6 +475,11 @@ def test_the_model_error_shifts_each_obstacle_row_by_what_the_rollout_made_of_it
     assert off.any() and not off.all()
     np.testing.assert_array_equal(qp1.h_l[2:][off], INACTIVE)
     np.testing.assert_allclose(qp1.h_l[2:][~off], (a0[2:] - shift)[~off], atol=1e-12)
+    # "tighten": only the rows the rollout came closer to than predicted move.
+    tight = MirrorPlanner(g, paper_config(paper_correction="tighten"))
+    _, _, a2, _ = tight.qp.build(xi0, cand, c, lin, seed, pairs, tight.line, False, correction=err)
+    assert (shift > 0).any() and (shift < 0).any()
+    np.testing.assert_allclose(a2[2:], a0[2:] - np.minimum(shift, 0.0), atol=1e-12)
 
 
 def test_with_the_model_error_corrected_a_frozen_candidate_clears_the_slots_neighbour():
@@ -484,11 +490,11 @@ def test_with_the_model_error_corrected_a_frozen_candidate_clears_the_slots_neig
     env = gym.make("MirrorPark-v0").unwrapped
     _, info = env.reset(options={"scenario": "angle_rw3.50_sl4.82_sw2.82_th-10_y2.40"})
     found = {}
-    for corr in (False, True):
+    for corr in ("off", "full"):
         pl = MirrorPlanner(info["geometry"], paper_config(time_limit_s=NO_NET, paper_correction=corr))
         found[corr] = pl.plan(info["vehicle_state"], [Candidate(1, 45)])
-    assert found[False] is None
-    assert found[True] is not None and found[True].collision_free
+    assert found["off"] is None
+    assert found["full"] is not None and found["full"].collision_free
 
 
 def test_the_paper_models_open_choices_are_validated_by_name():
@@ -507,6 +513,8 @@ def test_the_paper_models_open_choices_are_validated_by_name():
         paper_config(paper_first="guide")
     with pytest.raises(ValidationError, match="stop_first_speed"):
         paper_config(stop_first_speed=-0.1)
+    with pytest.raises(ValidationError, match="paper_correction"):
+        paper_config(paper_correction="half")
 
 
 def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_meets(monkeypatch):

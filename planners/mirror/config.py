@@ -42,10 +42,11 @@ class MirrorPlannerConfig(StrictModel):
     # mean heading; "seed", those of the candidate's shape seed rollout, as a round zero.
     paper_first: Literal["nominal", "seed"] = "nominal"
     # The obstacle rows hold on the paper model's states, the check on the truth model's
-    # rollout. True: from the second round on, each row is shifted by what the previous
+    # rollout. "full": from the second round on, each row is shifted by what the previous
     # round's rollout made of it against the QP's prediction (the model's error at that
-    # row), so that a row the QP meets holds on the car, not only on the model.
-    paper_correction: bool = False
+    # row), so that a row the QP meets holds on the car, not only on the model; "tighten":
+    # only where the rollout came closer to the obstacle than predicted; "off": never.
+    paper_correction: Literal["off", "full", "tighten"] = "off"
     max_iterations: int = Field(6, ge=1, le=1000)  # SCP + Algorithm I rounds per candidate
     max_trust_scale: float = Field(64.0, gt=0)  # give up on a candidate when the trust penalty grows past this
     w_trust_position: float = Field(0.5, ge=0)  # SCP trust region, as a penalty per m^2 of planned x, y moved

@@ -66,7 +66,7 @@ class _PaperModel:
         (None: a seed); True: nothing moved beyond the config's tolerances (or nothing is
         taken from rollouts)."""
         cfg, d = self.pl.cfg, self.cand.direction
-        if cfg.paper_correction and x is not None:
+        if cfg.paper_correction != "off" and x is not None:
             self.correction = self.model_error(real, x)
         if cfg.paper_speed == "nominal" and cfg.paper_angle == "ends":
             return True

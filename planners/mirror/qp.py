@@ -119,6 +119,8 @@ class MirrorQP:
         h_l, active = np.array(rows.h_l, float), np.array(rows.active, float)
         if correction is not None and n_s > n_switch:
             shift = G[n_switch:, : self.nz] @ correction  # what the error adds to each obstacle row
+            if cfg.paper_correction == "tighten":
+                shift = np.minimum(shift, 0.0)  # rows move away from obstacles only
             active[n_switch:] -= shift
             h_l[n_switch:] = np.where(h_l[n_switch:] > INACTIVE, active[n_switch:], h_l[n_switch:])
         pattern, p_vals, t_vals = self._cost_entry(s, terminal)[3]
