@@ -19,16 +19,18 @@ from pathlib import Path
 import pandas as pd
 
 from evaluation.cases import from_sample
+from evaluation.metrics import far_out
 from mirrorpark_env import VehicleParams
+from mirrorpark_env.criteria import iso_pose_slack
 
 PLANNERS = {"mirror": "mirror-chunk", "mirror-guided": "mirror-guided-", "hybrid-astar": "hybrid-astar-"}
 
 
 def unreachable(rows: pd.DataFrame) -> pd.Series:
-    """The zero-tolerance reverse and angle slots and the parallel slots of <= 4.12 m."""
-    width = VehicleParams.table_ii().width
+    """The zero-tolerance reverse and angle slots (no room to spare) and the parallel slots of <= 4.12 m."""
+    slack = iso_pose_slack(rows.parking_type, rows.slot_length, rows.slot_width, VehicleParams.table_ii())
     parallel = rows.parking_type == "parallel"
-    return (parallel & (rows.slot_length <= 4.125)) | (~parallel & (rows.slot_width <= width + 0.2 + 1e-6))
+    return (parallel & (rows.slot_length <= 4.125)) | (~parallel & (slack < 1e-9))
 
 
 def main() -> None:
@@ -44,7 +46,7 @@ def main() -> None:
         rows = pd.concat(pd.read_parquet(f) for f in files).drop_duplicates("case_id")
         sets = {"full grid": rows, "standard": rows[rows.case_id.isin(standard)]}
         for label, r in sets.items():
-            s = r[(r.y0 >= 1.6) & r.feasible]
+            s = r[far_out(r) & r.feasible]
             bad = unreachable(s)
             rest = s[~bad]
             print(
