@@ -174,10 +174,11 @@ def main() -> None:
     print(f"candidate solves per call: median {np.median([len(c['solves']) for c in calls]):.0f}")
     for label, flag in (("scouting", True), ("full budget (refinement, retries)", False)):
         ss = [s for s in solves if s["scouting"] is flag]
+        solve_ms = [s["ms"] for s in ss]
+        times = f"{np.median(solve_ms):.1f} / {np.percentile(solve_ms, 95):.1f} ms per solve" if ss else "no solves"
         print(
             f"  {label}: {len(ss)} solves, {sum(s['rounds'] for s in ss)} SCP rounds, "
-            f"{sum(s['qps'] for s in ss)} QP solves, "
-            f"{np.median([s['ms'] for s in ss]):.1f} / {np.percentile([s['ms'] for s in ss], 95):.1f} ms per solve"
+            f"{sum(s['qps'] for s in ss)} QP solves, {times}"
         )
     print(
         "branch and bound (found: the solve that gave the incumbent; 0 = the root relaxation, 1 = the reference's"
