@@ -15,12 +15,19 @@ def _in_slot_frame(policy: Policy) -> Policy:
     return InSlotFrame(policy)
 
 
+def mirror_policy(config) -> Policy:
+    """A ``MirrorPolicy`` under ``config`` (a ``planners.mirror.config.MirrorPlannerConfig``),
+    planning in the slot's frame as the registry's mirror planners do."""
+    from planners.mirror.policy import MirrorPolicy
+
+    return _in_slot_frame(MirrorPolicy(config))
+
+
 def _mirror(preset: str) -> Policy:
     """``MirrorPolicy`` with the settings ``planners.mirror.config.<preset>()``."""
     from planners.mirror import config
-    from planners.mirror.policy import MirrorPolicy
 
-    return _in_slot_frame(MirrorPolicy(getattr(config, preset)()))
+    return mirror_policy(getattr(config, preset)())
 
 
 def _guide_only() -> Policy:
@@ -36,7 +43,7 @@ def _hybrid_astar() -> Policy:
 
 
 PLANNERS: dict[str, Callable[[], Policy]] = {
-    "mirror": partial(_mirror, "MirrorPlannerConfig"),  # the default: candidates aimed and compared by a cost to go
+    "mirror": partial(_mirror, "mirror_config"),  # the default: candidates aimed and compared by a cost to go
     "mirror-cold": partial(_mirror, "cold_config"),  # the same without any path as warm start (shape seeds)
     "mirror-paper": partial(_mirror, "paper_config"),  # the paper's fixed-angle linearisation, multi-start
     "mirror-guided": partial(_mirror, "guided_config"),  # the geometric guide chooses, the QP polishes (the ablation)

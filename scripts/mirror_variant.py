@@ -1,12 +1,12 @@
-"""Run `mirror` with some settings changed over a sample, one process, and export its rows.
+"""Run a mirror planner preset with some settings changed over a sample, one process, and export its rows.
 
-    python scripts/mirror_variant.py --set value_retry_nodes=30 [--set KEY=JSON ...] \
+    python scripts/mirror_variant.py --set retry_nodes=30 [--set KEY=JSON ...] [--preset mirror] \
         [--name mirror-variant] [--sample smoke] [--out results/variants]
     mirrorpark diff --before BASELINE.parquet --after results/variants/mirror-variant.parquet
 
-Each ``--set`` overrides one field of ``planners.mirror.config.MirrorPlannerConfig``
-(the value read as JSON: numbers, true/false, lists), checked by the config's own
-validation. The rows go to ``OUT/<name>.parquet`` as ``mirrorpark evaluate --export``
+Each ``--set`` overrides one field of the preset's core or strategy config
+(``planners/mirror/config.py``; the value read as JSON: numbers, true/false, lists),
+checked by the config's own validation. The rows go to ``OUT/<name>.parquet`` as ``mirrorpark evaluate --export``
 writes them, so that ``mirrorpark diff`` compares them with a run of the default (run the
 default the same way, ``--name mirror`` and no ``--set``, at the same time for paired
 times). For ablations that need no new planner name in the registry.
@@ -24,12 +24,16 @@ from evaluation import registry
 from evaluation.cases import from_sample
 from evaluation.runner import run_case
 from evaluation.store import export_table
-from planners.mirror.config import MirrorPlannerConfig
+from planners.mirror import config
+
+PRESETS = {"mirror": "mirror_config", "mirror-cold": "cold_config", "mirror-guided": "guided_config"}
+PRESETS |= {"mirror-multistart": "multistart_config", "mirror-paper": "paper_config"}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON", help="a config field to override")
+    ap.add_argument("--preset", default="mirror", choices=sorted(PRESETS))
     ap.add_argument("--name", default="mirror-variant")
     ap.add_argument("--sample", default="smoke", choices=("smoke", "standard"))
     ap.add_argument("--out", default="results/variants")
@@ -41,16 +45,13 @@ def main() -> None:
             raise SystemExit(f"--set: expected KEY=JSON, got {item!r}")
         over[key] = json.loads(value)
     try:
-        cfg = MirrorPlannerConfig(**over)  # unknown fields and bad values fail here, by name
+        cfg = getattr(config, PRESETS[a.preset])(**over)  # unknown fields and bad values fail here, by name
     except ValidationError as err:
-        raise SystemExit(f"--set: {err.errors()[0]['loc'][0]}: {err.errors()[0]['msg']}") from None
+        raise SystemExit(f"--set: {err.errors()[0]['loc'][-1]}: {err.errors()[0]['msg']}") from None
+    except ValueError as err:
+        raise SystemExit(f"--set: {err}") from None
 
-    def make():
-        from planners.mirror.policy import MirrorPolicy
-
-        return registry._in_slot_frame(MirrorPolicy(cfg))
-
-    registry.PLANNERS[a.name] = make
+    registry.PLANNERS[a.name] = lambda: registry.mirror_policy(cfg)
     df = pd.DataFrame([run_case(a.name, sc) for sc in from_sample(a.sample)])
     path = export_table(df, a.out, a.name)
     solves = int(sum(sum(q) for q in df["plan_qp_solves"] if q is not None))

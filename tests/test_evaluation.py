@@ -201,34 +201,34 @@ def test_a_folder_resumes_only_with_the_code_its_rows_came_from(tmp_path, stub_p
 
 
 @pytest.fixture
-def value_plan_copy(tmp_path, monkeypatch):
-    """A copy of planners/mirror/value_plan.py that ``source_id`` reads in its place: edit it freely."""
+def strategy_copy(tmp_path, monkeypatch):
+    """A copy of planners/mirror/strategies/aimed.py that ``source_id`` reads in its place: edit it freely."""
     from evaluation import provenance
 
     files = provenance._row_files()
-    copy = tmp_path / "value_plan.py"
-    copy.write_bytes(dict(files)["planners/mirror/value_plan.py"].read_bytes())
-    swapped = tuple((n, copy if n == "planners/mirror/value_plan.py" else f) for n, f in files)
+    copy = tmp_path / "aimed.py"
+    copy.write_bytes(dict(files)["planners/mirror/strategies/aimed.py"].read_bytes())
+    swapped = tuple((n, copy if n == "planners/mirror/strategies/aimed.py" else f) for n, f in files)
     monkeypatch.setattr(provenance, "_row_files", lambda: swapped)
     return copy
 
 
-def test_a_refused_resume_names_the_files_that_changed(tmp_path, stub_planners, value_plan_copy):
+def test_a_refused_resume_names_the_files_that_changed(tmp_path, stub_planners, strategy_copy):
     evaluate("instant", _scenarios(A), tmp_path / "r", workers=1, progress=False)
-    value_plan_copy.write_bytes(value_plan_copy.read_bytes() + b"\n")
-    with pytest.raises(ValueError, match=r"changed: planners/mirror/value_plan.py\):"):
+    strategy_copy.write_bytes(strategy_copy.read_bytes() + b"\n")
+    with pytest.raises(ValueError, match=r"changed: planners/mirror/strategies/aimed.py\):"):
         evaluate("instant", _scenarios(A, B), tmp_path / "r", workers=1, progress=False)
 
 
-def test_the_source_id_changes_with_a_planner_file_and_an_rl_model_file(tmp_path, value_plan_copy):
+def test_the_source_id_changes_with_a_planner_file_and_an_rl_model_file(tmp_path, strategy_copy):
     from evaluation import provenance
 
     names = {n for n, _ in provenance._row_files()}
-    assert {"planners/mirror/value_plan.py", "mirrorpark_env/env.py", "evaluation.runner"} <= names
+    assert {"planners/mirror/strategies/aimed.py", "mirrorpark_env/env.py", "evaluation.runner"} <= names
     assert "configs/vehicle.yaml" in names
     before = provenance.source_id("mirror")
     assert before == provenance.source_id("mirror-cold")  # the code, not the name
-    value_plan_copy.write_bytes(value_plan_copy.read_bytes() + b"\n")
+    strategy_copy.write_bytes(strategy_copy.read_bytes() + b"\n")
     assert provenance.source_id("mirror") != before
     model = tmp_path / "model.zip"
     model.write_bytes(b"one")

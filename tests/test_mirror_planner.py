@@ -13,7 +13,14 @@ from fixed_cases import EASY_CASES
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario, VehicleParams
 from planners.base import run_episode
-from planners.mirror.config import MirrorPlannerConfig, guided_config, multistart_config, paper_config
+from planners.mirror.config import (
+    CoreConfig,
+    MirrorPlannerConfig,
+    mirror_config,
+    multistart_config,
+    paper_config,
+)
+from planners.mirror.cost import linear_term
 from planners.mirror.frames import FLIP, planned_controls, to_planned
 from planners.mirror.mirror_line import (
     mirror_line,
@@ -72,7 +79,7 @@ def test_negated_commands_follow_the_point_reflection_with_lags():
     planned = [xi0]
     x = xi0
     for i in range(60):
-        x = pl.model.step((FLIP @ x) if i == s else x, u[i])  # lag states flip at the switch
+        x = pl.core.model.step((FLIP @ x) if i == s else x, u[i])  # lag states flip at the switch
         planned.append(x)
     planned = np.array(planned)
     S = real[s, :2]
@@ -104,25 +111,25 @@ def test_qp_solution_satisfies_dynamics_and_bounds():
     pl = MirrorPlanner(g)
     xi0 = g.start.as_array()
     cand = Candidate(-1, 30)
-    c = pl.qp.cost(cand, np.array(g.target), 0.0)
-    ref = pl.shape_seeds.seed(xi0, cand, pl.line)
+    c = linear_term(pl.core.cfg, cand.switch, np.array(g.target), 0.0)
+    ref = pl.core.shape_seeds.seed(xi0, cand, pl.line)
     lin_at = to_planned(ref, cand, 2)
     lin_at[30] = FLIP @ lin_at[30]
-    lin = pl.model.jacobian_linearisation(lin_at, planned_controls(ref, cand, P, 0.1, 2))
-    qp, _, _, _ = pl.qp.build(xi0, cand, c, lin, ref, {}, pl.line, False)
+    lin = pl.core.model.jacobian_linearisation(lin_at, planned_controls(ref, cand, P, 0.1, 2))
+    qp, _, _, _ = pl.core.qp.build(xi0, cand, c, lin, ref, {}, pl.line, False)
     res = PiqpQP().solve(qp)
     assert res.status == "solved"
     z = res.x
     assert np.abs(qp.A @ z - qp.b).max() < 1e-5  # dynamics, initial state, switch link
     assert (z >= qp.x_l - 1e-6).all() and (z <= qp.x_u + 1e-6).all()
-    X = z[pl.qp.x_index]
-    U = z[pl.qp.u_index]
+    X = z[pl.core.qp.x_index]
+    U = z[pl.core.qp.u_index]
     assert (X[1:, 3] <= 1e-6).all()  # monodirectional: reversing throughout (planned frame)
     assert abs(X[30, 3]) < 1e-6 and abs(X[-1, 3]) < 1e-6  # stands at the switch and at N
     assert np.abs(U[:, 1]).max() <= 0.6 + 1e-6 and np.abs(X[:, 5]).max() <= 0.6 + 1e-6
     assert U[:30, 0].min() >= -5 - 1e-6 and U[:30, 0].max() <= 3 + 1e-6
     assert U[30:, 0].min() >= -3 - 1e-6 and U[30:, 0].max() <= 5 + 1e-6  # negated later: -a in [-5, 3]
-    np.testing.assert_allclose(z[pl.qp.iS : pl.qp.iS + 2], X[30, :2], atol=1e-6)  # S is the switch point
+    np.testing.assert_allclose(z[pl.core.qp.iS : pl.core.qp.iS + 2], X[30, :2], atol=1e-6)  # S is the switch point
 
 
 def test_a_car_still_rolling_back_gets_a_forward_plan_once_it_may_stop_first():
@@ -137,9 +144,11 @@ def test_a_car_still_rolling_back_gets_a_forward_plan_once_it_may_stop_first():
     results = []
     for stop_first in (0.0, 0.05):
         pl = MirrorPlanner(g, paper_config(stop_first_speed=stop_first))
-        lin = pl.model.paper_linearisation(pl.N, 0.0, 1.0)
-        qp, _, _, _ = pl.qp.build(xi0, cand, pl.qp.cost(cand, np.array(g.target), 0.0), lin, None, {}, pl.line, False)
-        results.append((qp, PiqpQP().solve(qp), pl.qp.x_index))
+        lin = pl.core.model.paper_linearisation(pl.core.N, 0.0, 1.0)
+        qp, _, _, _ = pl.core.qp.build(
+            xi0, cand, linear_term(pl.core.cfg, cand.switch, np.array(g.target), 0.0), lin, None, {}, pl.line, False
+        )
+        results.append((qp, PiqpQP().solve(qp), pl.core.qp.x_index))
     assert results[0][1].status != "solved"  # infeasible: the bound fails at step 1
     qp, res, xi = results[1]
     assert res.status == "solved"
@@ -268,15 +277,15 @@ def test_obstacle_rows_are_one_row_per_alternative_exact_at_the_reference():
     """Eq. (40)'s rows: every alternative of a disjunction is a row of its own, and at the
     pose they are linearised about each row's value less its bound is that face's exact
     clearance less the margin (points: n.(P + R c) - b; obstacle vertices: n_car.(q - P) - off)."""
-    from planners.mirror.layout import ix
     from planners.mirror.obstacles import Rows
+    from planners.mirror.variables import ix
 
     g = Scenario.from_degrees("reverse", 6.0, 4.82, 2.3, 0, 2.5).build()
     pl = MirrorPlanner(g)
-    obs = pl.qp.obstacles
+    obs = pl.core.qp.obstacles
     tx, ty, tth = g.target
     pose = np.array([tx + 0.4, ty + 1.0, tth + 0.2, 0.0, 0.0, 0.0])  # in the slot's mouth, near a side
-    real = np.repeat(pose[None], 2 * pl.N + 1, axis=0)
+    real = np.repeat(pose[None], 2 * pl.core.N + 1, axis=0)
     i = 10
     k = int(np.argmax(g.checker.penetration(pose[:1], pose[1:2], pose[2:3])[0]))  # the nearest obstacle
     rows = Rows()
@@ -288,7 +297,7 @@ def test_obstacle_rows_are_one_row_per_alternative_exact_at_the_reference():
     for d in rows.disj:
         assert len(set(d.rows)) == len(d.rows) and all(1 <= r < n_rows for r in d.rows)
     g_rows, g_cols, g_vals = rows.triplets()
-    G = sp.csr_matrix((g_vals, (g_rows, g_cols)), shape=(n_rows, ix(pl.N, 5) + 1))
+    G = sp.csr_matrix((g_vals, (g_rows, g_cols)), shape=(n_rows, ix(pl.core.N, 5) + 1))
     z = np.zeros(G.shape[1])
     z[[ix(i, 0), ix(i, 1), ix(i, 2)]] = pose[:3]
     value = G @ z - np.array(rows.active)
@@ -312,14 +321,14 @@ def test_obstacle_rows_of_many_pairs_after_a_switch_are_each_pairs_own():
     2 S - p planned): each pair's rows are those it gets alone, bit for bit, in the sorted
     pairs' order; at the reference each row's value less its bound is the face's exact
     clearance less the margin; each disjunction prefers its alternative with most room."""
-    from planners.mirror.layout import ix, switch_index
     from planners.mirror.obstacles import Rows
+    from planners.mirror.variables import ix, switch_index
 
     g = Scenario.from_degrees("parallel", 5.0, 6.0, 2.5, 0, 1.6).build()
     pl = MirrorPlanner(g)
-    obs = pl.qp.obstacles
+    obs = pl.core.qp.obstacles
     tx, ty, tth = g.target
-    N, s = pl.N, 12
+    N, s = pl.core.N, 12
     t = np.linspace(0.0, 1.0, 2 * N + 1)
     real = np.zeros((2 * N + 1, 6))  # sweeping into the slot's mouth, turning
     real[:, 0], real[:, 1], real[:, 2] = tx + 3.0 - 3.5 * t, ty + 1.6 - 1.3 * t, tth + 0.5 * np.sin(3 * t)
@@ -445,66 +454,14 @@ def test_the_paper_model_started_from_the_seed_moves_a_candidate_that_nominal_sp
     assert speeds["nominal"] < 1e-3 and speeds["seed"] > 2.0
 
 
-def test_the_model_error_shifts_each_obstacle_row_by_what_the_rollout_made_of_it():
-    """``paper_correction``: an obstacle row r (G_r z >= lower_r, linearised about the last
-    rollout) is shifted to G_r z >= lower_r - G_r e, with e the rollout minus the QP's
-    prediction, so the row holds on the rollout where it held on the prediction. Switch rows
-    and switched-off disjunction rows are left alone; a disjunction's enforced bound moves too.
-    "tighten" moves a row only where G_r e < 0."""
-    env = gym.make("MirrorPark-v0").unwrapped
-    _, info = env.reset(options={"scenario": "angle_rw3.50_sl4.82_sw2.82_th-10_y2.40"})
-    g, state = info["geometry"], info["vehicle_state"]
-    pl = MirrorPlanner(g, paper_config())
-    cand = Candidate(1, 45)
-    xi0 = state.as_array()
-    seed = pl.shape_seeds.seed(xi0, cand, pl.line)
-    pairs = {(i, k): None for i in range(30, pl.N + 1) for k in range(len(pl.qp.obstacles.faces))}
-    lin = pl.model.paper_linearisation(pl.N, 0.0, 1.0)
-    c = pl.qp.cost(cand, np.array(g.target), g.target[2])
-    rng = np.random.default_rng(0)
-    err = rng.normal(0.0, 0.05, pl.qp.nz)
-    (qp0, d0, a0, _), (qp1, d1, a1, _) = (
-        pl.qp.build(xi0, cand, c, lin, seed, pairs, pl.line, False, correction=e) for e in (None, err)
-    )
-    assert d0 == d1 and len(d0) > 0
-    shift = qp0.G[2:, : pl.qp.nz] @ err
-    assert np.abs(shift).max() > 0.01
-    np.testing.assert_allclose(a1[2:], a0[2:] - shift, atol=1e-12)
-    np.testing.assert_array_equal(a1[:2], a0[:2])  # the switch rows
-    off = qp0.h_l[2:] == INACTIVE  # disjunction rows: branch and bound enforces them
-    assert off.any() and not off.all()
-    np.testing.assert_array_equal(qp1.h_l[2:][off], INACTIVE)
-    np.testing.assert_allclose(qp1.h_l[2:][~off], (a0[2:] - shift)[~off], atol=1e-12)
-    # "tighten": only the rows the rollout came closer to than predicted move.
-    tight = MirrorPlanner(g, paper_config(paper_correction="tighten"))
-    _, _, a2, _ = tight.qp.build(xi0, cand, c, lin, seed, pairs, tight.line, False, correction=err)
-    assert (shift > 0).any() and (shift < 0).any()
-    np.testing.assert_allclose(a2[2:], a0[2:] - np.minimum(shift, 0.0), atol=1e-12)
-
-
-def test_with_the_model_error_corrected_a_frozen_candidate_clears_the_slots_neighbour():
-    """Without the correction the rounds of this candidate settle 5 mm from a neighbour
-    (the QP keeps 4 cm on the paper model; the check wants 1 cm on the rollout), and no clear
-    plan comes out; with it the rows hold on the rollout and the candidate has a clear plan,
-    confirmed by the truth model."""
-    env = gym.make("MirrorPark-v0").unwrapped
-    _, info = env.reset(options={"scenario": "angle_rw3.50_sl4.82_sw2.82_th-10_y2.40"})
-    found = {}
-    for corr in ("off", "full"):
-        pl = MirrorPlanner(info["geometry"], paper_config(time_limit_s=NO_NET, paper_correction=corr))
-        found[corr] = pl.plan(info["vehicle_state"], [Candidate(1, 45)])
-    assert found["off"] is None
-    assert found["full"] is not None and found["full"].collision_free
-
-
 def test_the_paper_models_open_choices_are_validated_by_name():
     """``mirror-paper`` takes its speeds and angle from the previous round; the old choice
     stays selectable, and a misspelt one is refused naming the field."""
     from pydantic import ValidationError
 
     cfg = paper_config()
-    assert (cfg.linearisation, cfg.paper_speed, cfg.paper_angle) == ("paper", "previous", "previous")
-    assert MirrorPlannerConfig().linearisation == "scp"  # the default never takes the paper's model
+    assert (cfg.strategy.kind, cfg.strategy.paper_speed, cfg.strategy.paper_angle) == ("paper", "previous", "previous")
+    assert MirrorPlannerConfig().strategy.kind == "aimed"  # the default never takes the paper's model
     with pytest.raises(ValidationError, match="paper_speed"):
         paper_config(paper_speed="last")
     with pytest.raises(ValidationError, match="paper_angle_tolerance"):
@@ -513,8 +470,10 @@ def test_the_paper_models_open_choices_are_validated_by_name():
         paper_config(paper_first="guide")
     with pytest.raises(ValidationError, match="stop_first_speed"):
         paper_config(stop_first_speed=-0.1)
-    with pytest.raises(ValidationError, match="paper_correction"):
-        paper_config(paper_correction="half")
+    with pytest.raises(ValueError, match="unknown field.*paper_correction"):
+        paper_config(paper_correction="half")  # retired: the obstacle rows shifted by the model's error
+    with pytest.raises(ValueError, match="unknown field.*paper_speed"):
+        mirror_config(paper_speed="previous")  # a field of another strategy
 
 
 def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_meets(monkeypatch):
@@ -553,11 +512,11 @@ def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_me
     keep = cut_down(disj)
     disj, preferred = [disj[k] for k in keep], [preferred[k] for k in keep]
     ref = Enumeration(backend).solve(qp, disj, active)
-    full = solve(BranchAndBound(backend, cfg.node_limit, NO_NET), qp, disj, active, preferred)
+    full = solve(BranchAndBound(backend, cfg.core.node_limit, NO_NET), qp, disj, active, preferred)
     assert full.status == "solved" and full.nodes < ref.qp_solves
     assert full.obj == pytest.approx(ref.obj, rel=1e-4, abs=1e-6)
-    scout = solve(BranchAndBound(backend, cfg.value_scout_node_limit, NO_NET), qp, disj, active, preferred)
-    assert scout.nodes <= cfg.value_scout_node_limit
+    scout = solve(BranchAndBound(backend, cfg.strategy.scout_node_limit, NO_NET), qp, disj, active, preferred)
+    assert scout.nodes <= cfg.strategy.scout_node_limit
     if scout.status == "solved":
         assert scout.obj == pytest.approx(ref.obj, rel=1e-4, abs=1e-6)
     else:
@@ -715,7 +674,7 @@ def test_a_plan_that_stops_hard_next_to_an_obstacle_is_not_safe():
     from planners.mirror.checks import Checks
 
     g = Scenario.from_case_id("parallel_rw3.50_sl4.22_sw2.50_th+0_y2.60").build()
-    checks = Checks(g, MirrorPlannerConfig())
+    checks = Checks(g, CoreConfig())
     xi0 = np.array([1.906, 1.819, 0.247, -0.280, 2.761, 0.523])  # reversing, braking hard
     u = np.array([[g.vehicle.a_max, 0.995 * g.vehicle.max_steer]])
     end = checks.truth.rollout(xi0, u)
@@ -737,7 +696,7 @@ def test_the_compiled_brake_tail_repeats_the_truth_model_bit_for_bit():
     stands."""
     from planners.mirror.checks import BRAKE_STEPS, Checks
 
-    checks = Checks(Scenario.from_case_id(EASY_CASES[0]).build(), MirrorPlannerConfig())
+    checks = Checks(Scenario.from_case_id(EASY_CASES[0]).build(), CoreConfig())
     rng = np.random.default_rng(5)
     for _ in range(300):
         state = (
@@ -751,27 +710,6 @@ def test_the_compiled_brake_tail_repeats_the_truth_model_bit_for_bit():
             want = _chained_brake(checks.truth, state, steps)[:, :3]
             got = checks.brake_tail(np.array(state), steps)
             assert got.shape == want.shape and np.array_equal(got, want)
-
-
-@pytest.mark.slow
-def test_where_the_guide_finds_no_path_the_fallback_plans_without_it():
-    """A start across a 3.5 m road, straight at an angle slot: the guide search finds no path.
-    Without the fallback the policy gives up standing; with it, the unguided multi-start
-    (within its smaller budget) plans the first move and the car parks."""
-    case_id = "angle_rw3.50_sl4.82_sw2.47_th+0_y2.60"
-    env = gym.make("MirrorPark-v0").unwrapped
-
-    def run(calls: int):
-        policy = MirrorPolicy(guided_config(fallback_calls=calls, time_limit_s=NO_NET))
-        info, _ = run_episode(env, policy, case_id)
-        return info, policy
-
-    info, policy = run(0)
-    assert not info["is_success"] and info["path_length"] < 0.01
-    assert [s.status for s in policy.stats] == ["no_guide", "no_guide"]
-    info, policy = run(3)
-    assert info["is_success"] and not info["collision"], info["failed_criterion"]
-    assert policy.stats[0].detail["guided"] is False  # the first plan came from the fallback
 
 
 def test_a_planner_failing_twice_where_the_car_stands_gives_up(monkeypatch):
@@ -856,7 +794,7 @@ def test_the_compiled_seed_rollouts_repeat_the_numpy_loop_bit_for_bit():
     from planners.mirror.seed_kernel import SeedRollouts
 
     p = VehicleParams.table_ii()
-    cfg = MirrorPlannerConfig()
+    cfg = CoreConfig()
     coarse = TruthModel(p, cfg.dt, cfg.dt / cfg.model_substeps)  # the planner's planning model
     roll = SeedRollouts(coarse)
     rng = np.random.default_rng(11)

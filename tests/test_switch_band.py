@@ -12,7 +12,7 @@ import pytest
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env import VehicleParams
 from planners.base import run_episode
-from planners.mirror.config import MirrorPlannerConfig, guided_config
+from planners.mirror.config import guided_config, mirror_config
 from planners.mirror.mirror_line import band_margin, parallel_upper_bound, reach_lower_bound, switch_band
 from planners.mirror.policy import MirrorPolicy
 
@@ -104,7 +104,7 @@ SWITCHING = {
         "angle_rw4.00_sl4.82_sw3.07_th-10_y2.40",
     ),
 }
-CONFIGS = {"mirror": MirrorPlannerConfig, "mirror-guided": guided_config}
+CONFIGS = {"mirror": mirror_config, "mirror-guided": guided_config}
 
 
 @pytest.mark.parametrize(("planner", "case_id"), [(p, c) for p, cases in SWITCHING.items() for c in cases])
@@ -130,7 +130,7 @@ def test_every_executed_switch_in_the_natural_order_lies_in_its_plans_band(plann
         goal = np.array(plan.goal)
         after = -plan.candidate.direction
         into_slot = parallel and after > 0 and np.allclose(goal[:2], target[:2], atol=2e-3)
-        margin = 1.0 if parallel else policy.config.mirror_margin
+        margin = 1.0 if parallel else policy.config.core.mirror_margin
         inside = band_margin(P, goal, pose, after, margin, g.slot_width if into_slot else None)
         assert abs(v) < 0.05, f"plan {j}: the car does not stand at its switch ({v:.3f} m/s)"
         assert inside > -0.01, f"plan {j}: switch {inside:.4f} m outside its band"

@@ -10,7 +10,7 @@ from planners.common import reeds_shepp
 from planners.common.path import Path
 from planners.common.tracker import PathTracker, TrackerConfig
 from planners.common.tracker_kernel import TrackedRollout
-from planners.mirror.config import MirrorPlannerConfig
+from planners.mirror.config import CoreConfig
 
 
 def _python_loop(tracker: PathTracker, model: TruthModel, xi0, steps: int):
@@ -33,7 +33,7 @@ def test_the_compiled_tracker_loop_repeats_the_python_loop_bit_for_bit():
     finish the path and stand: the same sub-step states, segments and samples reached,
     to the last bit."""
     p = VehicleParams.table_ii()
-    cfg = MirrorPlannerConfig()
+    cfg = CoreConfig()
     model = TruthModel(p, cfg.dt, cfg.dt / cfg.model_substeps)  # the planner's planning model
     roll = TrackedRollout(model)
     rng = np.random.default_rng(5)

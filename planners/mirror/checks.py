@@ -1,5 +1,6 @@
 """Checks and scores of a plan's rollout: exact footprint clearance, the truth model's
-verdict, the true cost and the merit that SCP accepts steps by, and the safe stop."""
+verdict, the merit that SCP accepts steps by (``cost.true_cost`` plus the exact penalty on
+penetration), and the safe stop."""
 
 from __future__ import annotations
 
@@ -15,11 +16,11 @@ from mirrorpark_env.vehicle import TruthModel
 from ..common.brake import BrakeRollout
 from ..common.clearance import gap_kernel, gaps, required_gap
 from ..common.tracker import hold_accel
-from .config import MirrorPlannerConfig
+from .config import CoreConfig
+from .cost import Terminal, terminal_for, true_cost
 from .frames import XI_A, XI_D, XI_V, real_commands
 from .mirror_line import MirrorLine
 from .plans import Candidate, Plan
-from .window import Terminal, end_cost, terminal_for
 
 BRAKE_STEPS = 30  # control steps of the brake checked after a plan (3 s: then under 1 mm/s)
 
@@ -36,7 +37,7 @@ class Start:
 class Checks:
     """Clearance, truth and cost of rollouts in one scenario."""
 
-    def __init__(self, geometry: ScenarioGeometry, cfg: MirrorPlannerConfig):
+    def __init__(self, geometry: ScenarioGeometry, cfg: CoreConfig):
         self.g, self.cfg = geometry, cfg
         self.p = geometry.vehicle
         self.N = cfg.horizon
@@ -45,7 +46,7 @@ class Checks:
         self.terminal = terminal_for(geometry, cfg)  # the target's terminal cost (None: one weight)
 
     def terminal_toward(self, goal) -> Terminal | None:
-        """The end's position cost toward ``goal``: the target's (``window.py``) where
+        """The end's position cost toward ``goal``: the target's (``cost.terminal_for``) where
         ``goal`` is the target, else one weight (None)."""
         return self.terminal if self.terminal is not None and same_pose(goal, self.g.target) else None
 
@@ -103,18 +104,8 @@ class Checks:
 
     # ------------------------------------------------------------------ cost
     def true_cost(self, real: np.ndarray, goal: np.ndarray, theta_t: float) -> tuple[float, float, float]:
-        """(cost, position error, heading error) of real states at the control steps."""
-        cfg = self.cfg
-        tx, ty, _ = goal
-        pos_err = float(np.hypot(real[-1, 0] - tx, real[-1, 1] - ty))
-        th_err = float(abs(real[-1, 2] - theta_t))
-        run = float((np.hypot(real[1:, 0] - tx, real[1:, 1] - ty) ** 2).sum()) * cfg.w_position * cfg.dt
-        term = self.terminal_toward(goal)
-        if term is not None:  # along and across the target's heading, as the QP weighs them
-            d = real[-1, :3] - (tx, ty, theta_t)
-            end = end_cost(term, cfg.w_terminal_position, float(d[0]), float(d[1]), float(d[2]))
-            return end + cfg.w_terminal_heading * th_err**2 + run, pos_err, th_err
-        return cfg.w_terminal_position * pos_err**2 + cfg.w_terminal_heading * th_err**2 + run, pos_err, th_err
+        """(cost, position error, heading error) of real states at the control steps (``cost.true_cost``)."""
+        return true_cost(self.cfg, real, goal, theta_t, self.terminal_toward(goal))
 
     def merit(self, real_half: np.ndarray, goal: np.ndarray, theta_t: float, pen: np.ndarray | None = None) -> float:
         """True cost of a rollout plus the exact penalty on its footprint's penetration
@@ -176,7 +167,7 @@ class Checks:
         return None
 
 
-def converged_to(real: np.ndarray, ref: np.ndarray, cfg: MirrorPlannerConfig) -> bool:
+def converged_to(real: np.ndarray, ref: np.ndarray, cfg: CoreConfig) -> bool:
     """An SCP round's rollout lies within the convergence tolerances of its reference."""
     dp = np.hypot(real[:, 0] - ref[:, 0], real[:, 1] - ref[:, 1]).max()
     dth = np.abs(real[:, 2] - ref[:, 2]).max()

@@ -18,9 +18,9 @@ import numpy as np
 from mirrorpark_env.scenario import ScenarioGeometry
 
 from .frames import XI_TH, XI_X, XI_Y, real_pose_coeffs
-from .layout import ix, switch_index
 from .plans import Candidate
 from .solvers import INACTIVE, Disjunction
+from .variables import ix, switch_index
 
 
 @dataclass

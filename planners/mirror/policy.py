@@ -102,7 +102,7 @@ class MirrorPolicy(Policy):
 
     def _travel(self, plan: Plan, k: int = 0) -> float:
         """How far ``plan`` moves the car from its step ``k`` on [m]."""
-        return float(np.abs(plan.states[k:, 3]).sum()) * self.config.dt
+        return float(np.abs(plan.states[k:, 3]).sum()) * self.config.core.dt
 
     def _drifted(self, s: VehicleState) -> bool:
         ref = self.plan.states[self.k]

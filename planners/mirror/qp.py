@@ -8,29 +8,26 @@ switch link) per switch step. Only the obstacle rows are assembled anew each rou
 
 from __future__ import annotations
 
-import math
-from functools import lru_cache
-
 import numpy as np
 import scipy.sparse as sp
 
 from mirrorpark_env.vehicle import VehicleParams
 
-from .config import MirrorPlannerConfig
+from .config import CoreConfig
+from .cost import Terminal, cost_pattern
 from .frames import FLIP, XI_A, XI_D, XI_TH, XI_V, XI_X, XI_Y, to_planned
-from .layout import iu, ix, switch_index, u_index, x_index
 from .mirror_line import MirrorLine, SwitchBand
 from .model import NU, NX
 from .obstacles import ObstacleRows, Rows
 from .plans import Candidate
 from .solvers import INACTIVE, QP, CscPattern, Disjunction
-from .window import Terminal, terminal_error
+from .variables import iu, ix, switch_index, u_index, x_index
 
 
 class MirrorQP:
     """Builds the QP of a round for one scenario and config."""
 
-    def __init__(self, params: VehicleParams, cfg: MirrorPlannerConfig, obstacles: ObstacleRows):
+    def __init__(self, params: VehicleParams, cfg: CoreConfig, obstacles: ObstacleRows):
         self.p, self.cfg, self.obstacles = params, cfg, obstacles
         N = self.N = cfg.horizon
         self.iS = switch_index(N)
@@ -42,32 +39,6 @@ class MirrorQP:
         self._eq_patterns: dict[int, CscPattern] = {}  # per switch-link step
         self._g_switch: dict[int, CscPattern] = {}  # G of a QP without obstacle rows, per switch step
         self._bounds: dict[tuple[int, int | None], tuple[np.ndarray, np.ndarray]] = {}
-        self._costs: dict[tuple, tuple] = {}  # this planner's view of ``cost_pattern``
-
-    # ------------------------------------------------------------------ cost
-    def cost(self, cand: Candidate, goal: np.ndarray, theta_t: float, terminal: Terminal | None = None) -> np.ndarray:
-        """c of sum w * residual^2 toward ``goal`` (the real target or a guide's pose),
-        mirrored through S after the switch (piqp: 1/2 z'Pz + c'z). ``terminal``: the end's
-        position cost in the target's frame (``window.py``); None: one weight."""
-        L, w, kinds, _ = self._cost_entry(cand.switch, terminal)
-        kappa = 1.0 if cand.switch is not None else 0.0
-        tx, ty, _ = goal
-        k0 = np.zeros(len(w))  # residual = p_i - 2 kappa S - (1 - 2 kappa) goal
-        k0[kinds == 1] = -(1 - 2 * kappa) * tx
-        k0[kinds == 2] = -(1 - 2 * kappa) * ty
-        k0[kinds == 3] = -theta_t
-        if terminal is not None:  # the end along the target's heading; its front and rear across it
-            along, across = terminal_error(terminal, tx, ty)
-            k0[kinds == 4] = -(1 - 2 * kappa) * along
-            k0[kinds == 5] = -across - terminal.front * theta_t
-            k0[kinds == 6] = -across + terminal.rear * theta_t
-        return 2.0 * (L.T @ (w * k0))
-
-    def _cost_entry(self, s: int | None, terminal: Terminal | None = None) -> tuple:
-        key = (s, terminal)
-        if key not in self._costs:
-            self._costs[key] = cost_pattern(self.cfg, s, terminal)
-        return self._costs[key]
 
     # ----------------------------------------------------------------- build
     def build(
@@ -84,14 +55,12 @@ class MirrorQP:
         trust_scale: float = 1.0,
         band: SwitchBand | None = None,
         terminal: Terminal | None = None,
-        correction: np.ndarray | None = None,
     ) -> tuple[QP, list[Disjunction], np.ndarray, list[int]]:
         """(QP, disjunctions, each row's enforced lower bound, preferred rows) of one round.
 
         The switch rows: ``band`` where given (with a switch), else the fixed ``line``
-        where ``mirror`` is on; neither: inactive. ``terminal``: as ``c`` was built.
-        ``correction``: the model's error (rollout minus prediction, in z's layout, slacks
-        left out) by which each obstacle row's bound is shifted."""
+        where ``mirror`` is on; neither: inactive. ``terminal``: as ``c`` was built
+        (``cost.linear_term``)."""
         cfg = self.cfg
         s = cand.switch
         vals, b = self._equalities(xi0, cand, lin)
@@ -105,7 +74,6 @@ class MirrorQP:
                 c[self.x_index[1:, j]] -= 2.0 * trust_scale * w * pl[1:, j]
         rows = Rows()
         self._switch_rows(rows, s, line, s is not None and mirror, band if s is not None else None)
-        n_switch = len(rows.h_l)
         if theta_set and ref_real is not None:
             self.obstacles.add(rows, cand, ref_real, theta_set)
         # Every row's lower side is soft: row + slack >= lower bound, slack >= 0 at w_slack
@@ -117,13 +85,7 @@ class MirrorQP:
         nz = self.nz + n_s
         G = self._inequalities(rows, n_s, nz)
         h_l, active = np.array(rows.h_l, float), np.array(rows.active, float)
-        if correction is not None and n_s > n_switch:
-            shift = G[n_switch:, : self.nz] @ correction  # what the error adds to each obstacle row
-            if cfg.paper_correction == "tighten":
-                shift = np.minimum(shift, 0.0)  # rows move away from obstacles only
-            active[n_switch:] -= shift
-            h_l[n_switch:] = np.where(h_l[n_switch:] > INACTIVE, active[n_switch:], h_l[n_switch:])
-        pattern, p_vals, t_vals = self._cost_entry(s, terminal)[3]
+        pattern, p_vals, t_vals = cost_pattern(cfg, s, terminal)[3]
         P = pattern.matrix(p_vals + (trust_scale if trust else 0.0) * t_vals, (nz, nz))
         A = self._eq_pattern(s).matrix(vals, (self._n_dyn_rows + 2, nz))
         c = np.concatenate([c, np.full(n_s, cfg.w_slack)])
@@ -272,75 +234,3 @@ def _dynamics_pattern(N: int) -> tuple[np.ndarray, np.ndarray]:
             for b in range(NU):
                 rows.append(r), cols.append(iu(i, b))
     return np.array(rows), np.array(cols)
-
-
-@lru_cache(maxsize=256)
-def cost_pattern(cfg: MirrorPlannerConfig, s: int | None, terminal: Terminal | None = None):
-    """(L, w, residual kinds, (P's pattern with the trust penalty, P's values, trust's
-    values)) for switch step ``s``; built once per config (and ``terminal``) and shared by
-    episodes. Kinds: 1, 2, 3 x, y, heading toward the goal; 4 the end's position along
-    ``terminal``'s heading, 5, 6 its front and rear across it; 0 no goal."""
-    N = cfg.horizon
-    iS = switch_index(N)
-    nz = iS + 2
-    kappa = 1.0 if s is not None else 0.0
-    rows, cols, vals, kinds, w = [], [], [], [], []
-    r = 0
-
-    def add(entries, kind, weight):
-        nonlocal r
-        for col, v in entries:
-            rows.append(r), cols.append(col), vals.append(v)
-        kinds.append(kind), w.append(weight)
-        r += 1
-
-    for i in range(1, N + 1):
-        wp = cfg.w_terminal_position if i == N else cfg.w_position * cfg.dt
-        wh = cfg.w_terminal_heading if i == N else cfg.w_heading * cfg.dt
-        if i == N and terminal is not None:
-            c, sn = math.cos(terminal.heading), math.sin(terminal.heading)
-            add([(ix(i, XI_X), c), (ix(i, XI_Y), sn), (iS, -2.0 * kappa * c), (iS + 1, -2.0 * kappa * sn)], 4, wp)
-            # The body's front and rear ends across the target's heading, real frame (real =
-            # 2 S - planned after the switch; the heading is not reflected), linearised in
-            # the heading: the real rear axle's offset + arm * heading error.
-            flip, shift = 1.0 - 2.0 * kappa, 2.0 * kappa
-            for arm, kind in ((terminal.front, 5), (-terminal.rear, 6)):
-                add(
-                    [
-                        (ix(i, XI_X), -flip * sn),
-                        (ix(i, XI_Y), flip * c),
-                        (iS, -shift * sn),
-                        (iS + 1, shift * c),
-                        (ix(i, XI_TH), arm),
-                    ],
-                    kind,
-                    0.5 * terminal.w_lateral,
-                )
-        else:
-            for j, kind in ((XI_X, 1), (XI_Y, 2)):
-                add([(ix(i, j), 1.0), (iS + j, -2.0 * kappa)], kind, wp)
-        add([(ix(i, XI_TH), 1.0)], 3, wh)
-    add([(ix(N, XI_A), 1.0)], 0, cfg.w_terminal_accel)
-    for i in range(N):
-        add([(iu(i, 0), 1.0)], 0, cfg.w_accel_cmd * cfg.dt)
-        add([(iu(i, 1), 1.0)], 0, cfg.w_steer_cmd * cfg.dt)
-        if i > 0 and i != s:  # no rate cost across the switch (commands flip)
-            add([(iu(i, 0), 1.0), (iu(i - 1, 0), -1.0)], 0, cfg.w_accel_rate)
-            add([(iu(i, 1), 1.0), (iu(i - 1, 1), -1.0)], 0, cfg.w_steer_rate)
-    L = sp.csr_matrix((vals, (rows, cols)), shape=(r, nz))
-    w = np.asarray(w)
-    P = sp.triu(2.0 * (L.T @ sp.diags(w) @ L)).tocsc()  # piqp reads the upper triangle
-    # P + scale * trust shares one pattern: (pattern, P's values, trust's values).
-    Pc, T = P.tocoo(), _trust_diag(cfg, nz).tocoo()
-    pattern = CscPattern(np.concatenate([Pc.row, T.row]), np.concatenate([Pc.col, T.col]), P.shape)
-    zp, zt = np.zeros(Pc.nnz), np.zeros(T.nnz)
-    with_trust = (pattern, np.concatenate([Pc.data, zt]), np.concatenate([zp, T.data]))
-    return L, w, np.asarray(kinds), with_trust
-
-
-def _trust_diag(cfg: MirrorPlannerConfig, nz: int) -> sp.csc_matrix:
-    d = np.zeros(nz)
-    xi = x_index(cfg.horizon)
-    for j, w in ((XI_X, cfg.w_trust_position), (XI_Y, cfg.w_trust_position), (XI_TH, cfg.w_trust_heading)):
-        d[xi[1:, j]] = 2.0 * w
-    return sp.diags(d, format="csc")

@@ -1,9 +1,9 @@
 """First references for SCP: where each plan's linearisation starts.
 
-- ``GuidedSeed``: the planning model driven along a geometric guide (``guide.py``) by the
-  shared path tracker, up to the guide's first switch: a candidate (gear, switch step),
-  a rollout and the goal of the plan.
-- ``ShapeSeeds``: without a guide, rollouts of the manoeuvre's classic shape for every
+- ``TrackedSeed``: the planning model driven along a path (the geometric guide of
+  ``guide.py``, or the cost to go's way on) by the shared path tracker, up to the path's
+  first switch: a candidate (gear, switch step), a rollout and the goal of the plan.
+- ``ShapeSeeds``: without a path, rollouts of the manoeuvre's classic shape for every
   candidate (both gears, two switch steps, no switch) and a few heading excursions,
   ranked by merit (a multi-start: 18 seeds roll out in about 0.2 ms compiled, an SCP takes tens).
 """
@@ -22,7 +22,7 @@ from mirrorpark_env.vehicle import TruthModel, VehicleState
 from ..common.path import Path
 from ..common.tracker import PathTracker, TrackerConfig
 from ..common.tracker_kernel import TrackedRollout
-from .config import MirrorPlannerConfig
+from .config import CoreConfig
 from .frames import XI_TH, XI_Y
 from .guide import Guide
 from .mirror_line import MirrorLine
@@ -32,10 +32,10 @@ from .seed_kernel import SeedRollouts, seed_references
 TURN = math.inf  # seed mode: steer toward the target heading in both segments
 
 
-class GuidedSeed:
-    """Tracks a guide on the planning model (``coarse``: the truth model at half steps)."""
+class TrackedSeed:
+    """Tracks a path on the planning model (``coarse``: the truth model at half steps)."""
 
-    def __init__(self, geometry: ScenarioGeometry, cfg: MirrorPlannerConfig, coarse: TruthModel):
+    def __init__(self, geometry: ScenarioGeometry, cfg: CoreConfig, coarse: TruthModel):
         self.p, self.N = geometry.vehicle, cfg.horizon
         self.target = np.array(geometry.target, float)
         self.tracker_cfg = TrackerConfig(cruise_speed=cfg.seed_speed, accel=cfg.seed_accel, decel=cfg.seed_accel)
@@ -81,7 +81,7 @@ class GuidedSeed:
 class ShapeSeeds:
     """The multi-start seeds of a plan without a guide."""
 
-    def __init__(self, geometry: ScenarioGeometry, cfg: MirrorPlannerConfig, coarse: TruthModel):
+    def __init__(self, geometry: ScenarioGeometry, cfg: CoreConfig, coarse: TruthModel):
         self.g, self.cfg, self.N = geometry, cfg, cfg.horizon
         self.rollouts = SeedRollouts(coarse)  # compiled: seed_kernel.py
 

@@ -1,4 +1,4 @@
-"""The cost to go (``planners/mirror/value.py``) and the planner that chooses by it (``mirror``, the default)."""
+"""The cost to go (``planners/mirror/cost_to_go.py``) and the strategy that aims and compares by it (``mirror``)."""
 
 from __future__ import annotations
 
@@ -14,10 +14,11 @@ from mirrorpark_env import Scenario
 from planners.base import run_episode
 from planners.common.clearance import gaps
 from planners.common.path import arc
-from planners.mirror.config import MirrorPlannerConfig, cold_config
+from planners.mirror.config import AimedConfig, cold_config, mirror_config
+from planners.mirror.cost_to_go import CostToGo, CostToGoConfig
 from planners.mirror.planner import MirrorPlanner
 from planners.mirror.policy import MirrorPolicy
-from planners.mirror.value import CostToGo, ValueConfig
+from planners.mirror.strategies.aimed import AimedCandidates, ColdStart
 
 REVERSE = "reverse_rw5.00_sl4.82_sw2.47_th+0_y2.00"  # target (1.235, -3.61), heading +90 deg
 
@@ -25,7 +26,7 @@ REVERSE = "reverse_rw5.00_sl4.82_sw2.47_th+0_y2.00"  # target (1.235, -3.61), he
 @pytest.fixture(scope="module")
 def reverse_value() -> tuple[CostToGo, np.ndarray]:
     g = Scenario.from_case_id(REVERSE).build()
-    moves_alone = ValueConfig(headings=72, in_slot_arcs=0, entry_length=0)  # worked by hand
+    moves_alone = CostToGoConfig(headings=72, in_slot_arcs=0, entry_length=0)  # worked by hand
     return CostToGo(g, moves_alone), np.array(g.target, float)
 
 
@@ -77,7 +78,7 @@ def test_read_path_follows_the_way_v_prices_at_the_pose_not_one_move_on():
     itself lands where the way on turns forward at once. ``read_path`` follows the way V
     prices; ``policy_path`` the other (both are warm starts of ``mirror``)."""
     g = Scenario.from_case_id(ANGLE_START).build()
-    V = CostToGo(g, MirrorPlannerConfig().value_lattice)
+    V = CostToGo(g, AimedConfig().lattice)
     car = np.array([g.start.x, g.start.y, g.start.theta])
     v, s = V.at(car)
     read = V.P[s, V._col(s, None)].astype(float)
@@ -99,7 +100,7 @@ def test_mirror_parks_from_this_start_with_one_switch():
     (+0.07 m, then -7.4 m); with ``policy_path``'s seeds alone its second call shuffled and
     the car took 3 switches (+0.06, -0.36, +0.26, -7.94 m)."""
     env = gym.make("MirrorPark-v0").unwrapped
-    info, _ = run_episode(env, MirrorPolicy(MirrorPlannerConfig(time_limit_s=600.0)), ANGLE_START)
+    info, _ = run_episode(env, MirrorPolicy(mirror_config(time_limit_s=600.0)), ANGLE_START)
     assert info["is_success"] and not info["collision"]
     assert info["direction_switches"] == 1
 
@@ -109,7 +110,7 @@ def test_lookahead_reads_v_through_an_exact_move_where_the_cell_says_too_little(
     # reads 7.0 m reversing on, but every reverse move from the pose itself collides (the
     # lattice of 5 deg cells without the entries, as it was measured).
     g = Scenario.from_case_id("reverse_rw7.00_sl4.82_sw2.22_th+10_y3.10").build()
-    V = CostToGo(g, ValueConfig(headings=72, entry_length=0))
+    V = CostToGo(g, CostToGoConfig(headings=72, entry_length=0))
     pose = np.array([1.779, 0.954, 1.297])
     assert V.at(pose, -1)[0] == pytest.approx(6.96, abs=0.01)
     for p in np.flatnonzero(V.gear < 0):  # every reverse move from the pose hits the neighbour
@@ -135,7 +136,7 @@ def test_in_slot_turns_reach_a_tight_parallel_slot_that_the_moves_alone_do_not()
     there is a drivable chain of exact poses that keeps the clearance and ends at the target."""
     g = Scenario.from_case_id(TIGHT).build()
     start = np.array([g.start.x, g.start.y, g.start.theta])
-    assert CostToGo(g, ValueConfig(in_slot_arcs=0)).at(start)[0] == math.inf
+    assert CostToGo(g, CostToGoConfig(in_slot_arcs=0)).at(start)[0] == math.inf
     V = CostToGo(g)
     v, s = V.at(start)
     assert math.isfinite(v)
@@ -158,8 +159,8 @@ def test_entries_price_a_way_in_that_the_moves_alone_price_five_times_too_high()
     straight-arc-straight path that ends at the target, reversing throughout."""
     g = Scenario.from_case_id(REVERSE).build()
     t = np.array(g.target, float)
-    V = CostToGo(g, ValueConfig(headings=72, in_slot_arcs=0))
-    moves_alone = CostToGo(g, ValueConfig(headings=72, in_slot_arcs=0, entry_length=0))
+    V = CostToGo(g, CostToGoConfig(headings=72, in_slot_arcs=0))
+    moves_alone = CostToGo(g, CostToGoConfig(headings=72, in_slot_arcs=0, entry_length=0))
     pose = arc(arc(t, 0.0, np.array([3.0]))[0], 1.0 / V.radius, np.array([1.0]))[0]
     exact = 4.0 * 1.5 + 0.05 * 1.0
     v, s = V.at(pose, -1)
@@ -185,9 +186,9 @@ def test_a_target_closer_to_an_obstacle_than_the_clearance_gives_no_entries():
 
 def test_a_bad_lattice_setting_is_refused_by_name():
     with pytest.raises(ValidationError, match="xy_resolution"):
-        MirrorPlannerConfig(value=True, value_lattice={"xy_resolution": 0.0})
+        mirror_config(lattice={"xy_resolution": 0.0})
     with pytest.raises(ValidationError, match="headings"):
-        ValueConfig(headings=4)
+        CostToGoConfig(headings=4)
 
 
 @pytest.mark.slow
@@ -202,20 +203,17 @@ def test_a_bad_lattice_setting_is_refused_by_name():
     ],
 )
 def test_mirror_parks_and_executes_the_cheapest_candidate_of_each_call(case_id, warm_start, monkeypatch):
-    """Also ``mirror-cold``: V the terminal cost, but neither V's way on nor the guide
-    seeds a candidate (either one asked fails the test); the classic shapes seed them."""
+    """Also ``mirror-cold``: V the terminal cost, but none of V's ways seeds a candidate
+    (one asked fails the test); the classic shapes seed them."""
     if not warm_start:
-        from planners.mirror.planner import MirrorPlanner
-        from planners.mirror.value import CostToGo
 
         def asked(*args, **kwargs):
             raise AssertionError("a path was asked for a warm start")
 
         monkeypatch.setattr(CostToGo, "policy_path", asked)
         monkeypatch.setattr(CostToGo, "read_path", asked)
-        monkeypatch.setattr(MirrorPlanner, "guide_search", asked)
     env = gym.make("MirrorPark-v0").unwrapped
-    policy = MirrorPolicy(MirrorPlannerConfig(time_limit_s=600.0) if warm_start else cold_config(time_limit_s=600.0))
+    policy = MirrorPolicy(mirror_config(time_limit_s=600.0) if warm_start else cold_config(time_limit_s=600.0))
     info, _ = run_episode(env, policy, case_id)
     assert info["is_success"] and not info["collision"], info["failed_criterion"]
     calls = [s for s in policy.stats if s.status == "ok"]
@@ -227,7 +225,7 @@ def test_mirror_parks_and_executes_the_cheapest_candidate_of_each_call(case_id, 
 
 
 @pytest.mark.slow
-def test_mirror_cold_seeds_a_candidate_without_a_switch_by_the_shape_sized_to_its_goal():
+def test_mirror_cold_seeds_a_candidate_without_a_switch_by_the_shape_sized_to_its_goal(monkeypatch):
     """Across a 4.5 m road, the car's nose 1.2 m from the road's far side: every classic
     shape sized to the target runs into a wall, and without path warm starts no candidate
     gave a plan, so ``mirror-cold`` never moved the car. The shape sized to a candidate's own
@@ -238,14 +236,17 @@ def test_mirror_cold_seeds_a_candidate_without_a_switch_by_the_shape_sized_to_it
     _, info = env.reset(options={"scenario": "parallel_rw4.50_sl4.82_sw2.50_th+70_y1.20"})
     out = {}
     for goal_shapes in (False, True):
-        planner = MirrorPlanner(info["geometry"], cold_config(value_goal_shapes=goal_shapes, time_limit_s=600.0))
-        out[goal_shapes] = planner.plan(info["vehicle_state"]), planner.last_stats
+        with monkeypatch.context() as m:
+            if not goal_shapes:  # the shapes as ranked, sized to the target
+                m.setattr(ColdStart, "_sized", AimedCandidates._sized)
+            planner = MirrorPlanner(info["geometry"], cold_config(time_limit_s=600.0))
+            out[goal_shapes] = planner.plan(info["vehicle_state"]), planner.last_stats
     assert out[False][1].status != "ok"
     assert all(j is None for _, j, *_ in out[False][1].detail["candidates"])
     plan, stats = out[True]
     assert stats.status == "ok" and plan.collision_free and plan.candidate.switch is None
     assert np.abs(plan.states[:, 3]).max() > 0.05  # it moves
-    default = MirrorPlanner(info["geometry"], MirrorPlannerConfig(time_limit_s=600.0))
+    default = MirrorPlanner(info["geometry"], mirror_config(time_limit_s=600.0))
     warm = default.plan(info["vehicle_state"])
     assert warm.candidate == plan.candidate and default.last_stats.cost == pytest.approx(stats.cost, abs=0.01)
 
@@ -265,7 +266,7 @@ def _rolls_back(plan, tau: float) -> bool:
 
 
 @pytest.mark.slow
-def test_mirror_plans_end_settled_so_no_stop_rolls_back_across_zero():
+def test_mirror_plans_end_settled_so_no_stop_rolls_back_across_zero(monkeypatch):
     # Without end_settled this episode parks with 3 switches: a plan stops while still braking
     # and the lag rolls the car back across zero. (Measured on y0 = 3.50 m until the warm
     # starts' joins were mended, when that episode's plans came out otherwise.)
@@ -276,13 +277,13 @@ def test_mirror_plans_end_settled_so_no_stop_rolls_back_across_zero():
         # the value mode's first settings, under which it was measured (finish radius 3 m, 5 deg
         # cells, scouting on 10 nodes: on 5 the settled run parks with 3 switches, none a roll-back;
         # no seed along the way V prices at the car, which came later)
-        cfg = MirrorPlannerConfig(
+        monkeypatch.setattr(CostToGo, "read_path", lambda *args, **kwargs: None)
+        cfg = mirror_config(
             end_settled=settled,
-            value_read_seed=False,
             time_limit_s=600.0,
-            value_scout_node_limit=10,
-            value_finish_radius=3.0,
-            value_lattice=ValueConfig(),
+            scout_node_limit=10,
+            finish_radius=3.0,
+            lattice=CostToGoConfig(),
             settle_position=0.06,
             settle_heading=0.02,
         )
@@ -296,7 +297,7 @@ def test_mirror_plans_end_settled_so_no_stop_rolls_back_across_zero():
 
 
 def _between_numpy(a, b, gear, sample_step):
-    """The numpy form of one move's resampling (``value._between`` before it was compiled)."""
+    """The numpy form of one move's resampling (``cost_to_go_search._between`` before it was compiled)."""
     d = math.hypot(b[0] - a[0], b[1] - a[1])
     n = max(1, math.ceil(d / sample_step - 1e-9))
     dth = float(b[2] - a[2])
@@ -309,10 +310,10 @@ def _between_numpy(a, b, gear, sample_step):
 
 
 def test_compiled_resampling_of_moves_equals_the_numpy_form_bit_for_bit():
-    """``value._between`` (compiled, all moves at once) gives exactly the poses of the
+    """``cost_to_go_search._between`` (compiled, all moves at once) gives exactly the poses of the
     numpy arc formula move by move: arcs either way in both gears, straights, headings
     that differ by less than the straight threshold, and zero-length moves."""
-    from planners.mirror.value import _between
+    from planners.mirror.cost_to_go_search import _between
 
     rng = np.random.default_rng(5)
     m = 400
@@ -341,7 +342,7 @@ def test_policy_paths_change_gear_only_where_v_s_way_does_in_and_near_a_slot():
     it holds a switch the way does not (37 of 288 warm starts on every 50th standard case
     did). Poses around the mouth of the traced angle slot (value's default lattice)."""
     g = Scenario.from_case_id("angle_rw4.50_sl4.82_sw2.37_th-30_y2.50").build()
-    V = CostToGo(g, MirrorPlannerConfig().value_lattice)
+    V = CostToGo(g, AimedConfig().lattice)
     tx, ty, tth = g.target
     u, n = np.array([math.cos(tth), math.sin(tth)]), np.array([-math.sin(tth), math.cos(tth)])
     tried = bad = 0
@@ -370,7 +371,7 @@ def test_a_goal_down_v_moves_on_where_the_way_from_the_cars_cell_turns_back_at_o
     (the candidate stood still, and the car shuffled out and in: 3 switches where 1 parks).
     From where one exact move in reverse lands, the way reverses to the target."""
     g = Scenario.from_case_id("angle_rw4.50_sl4.82_sw2.37_th-30_y2.50").build()
-    V = CostToGo(g, MirrorPlannerConfig().value_lattice)
+    V = CostToGo(g, AimedConfig().lattice)
     pose = np.array([-0.41, -2.02, math.radians(53.48)])
     s = V.at(pose, -1)[1]
     assert V.way_on(s, 0)[1][1] == 1.0  # the stored way turns back at once
@@ -384,7 +385,7 @@ def test_a_join_to_v_s_way_turns_the_short_way_and_ends_on_the_way_s_pose():
     """A cell's stored heading may differ from the car's by a full turn (22 of 554 joins on
     every 25th standard case): the join's headings turn the short way, and its last pose is
     the way's own, so the way goes on from it as stored."""
-    from planners.mirror.value import _straight
+    from planners.mirror.cost_to_go import _straight
 
     a = np.array([0.0, 0.0, math.pi - 0.05])
     b = np.array([-0.29, 0.01, -math.pi + 0.05])  # 0.1 rad on, written a turn lower

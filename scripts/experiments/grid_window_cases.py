@@ -1,7 +1,7 @@
 """The full grid's cases whose plans the terminal weight across the slot changes.
 
 ``mirror`` weighs the end across the target's heading more in slots whose ISO window across
-is narrower than ``MirrorPlannerConfig.lateral_window`` (``planners/mirror/window.py``);
+is narrower than ``CoreConfig.lateral_window`` (``planners/mirror/cost.py``);
 every other case plans as before, to the last bit. This writes the cases it changes as a
 CSV for ``mirrorpark evaluate --cases``, so that a rerun of the grid after such a change
 runs only those. Run: ``python scripts/grid_window_cases.py OUT.csv [LATERAL_WINDOW]``.
@@ -13,12 +13,12 @@ import csv
 import sys
 
 from evaluation.cases import CASE_FIELDS, from_sample
-from planners.mirror.config import MirrorPlannerConfig
-from planners.mirror.window import terminal_for
+from planners.mirror.config import CoreConfig
+from planners.mirror.cost import terminal_for
 
 
 def main(out: str, window: float | None = None) -> None:
-    cfg = MirrorPlannerConfig() if window is None else MirrorPlannerConfig(lateral_window=window)
+    cfg = CoreConfig() if window is None else CoreConfig(lateral_window=window)
     changed: dict[tuple, bool] = {}
     rows = []
     for sc in from_sample("full"):

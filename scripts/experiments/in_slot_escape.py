@@ -23,7 +23,7 @@ from evaluation.cases import from_sample
 from mirrorpark_env.criteria import iso_pose_exists
 from planners.common.clearance import gaps
 from planners.common.turns import turn_chains
-from planners.mirror.config import MirrorPlannerConfig
+from planners.mirror.config import AimedConfig
 
 OUT = math.radians(45.0)  # turned this far, the car is out of the slot's grip
 
@@ -54,7 +54,7 @@ def main() -> None:
     ap.add_argument("--max-length", type=float, default=4.62, help="longest slot to look at [m]")
     ap.add_argument("--arcs", type=int, default=100, help="most arcs per turn")
     a = ap.parse_args()
-    v = MirrorPlannerConfig().value_lattice
+    v = AimedConfig().lattice
     settings = [  # (label, steer fraction, sample step [m], clearance [m])
         (f"V ({v.clearance * 100:g} cm, {v.tail_step * 100:g} cm steps)", v.steer_fraction, v.tail_step, v.clearance),
         ("4 cm, 1 cm steps", v.steer_fraction, 0.01, 0.04),

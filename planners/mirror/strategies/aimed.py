@@ -1,4 +1,4 @@
-"""Plans chosen by a cost to go: the optimisation compares manoeuvres (``mirror``, the default).
+"""``mirror`` (the default) and ``mirror-cold``: candidates aimed down a cost to go, compared by optimisation.
 
 One call solves several candidates (first gear, with or without a switch), each by the same
 SCP with Algorithm I inside toward its own mirrored goal, and executes the one whose
@@ -6,54 +6,56 @@ optimised trajectory is cheapest by
 
     J = driven metres (reversing dearer) + a price per direction switch + V(end),
 
-with V the cost to go of ``value.py``: the terminal cost beyond the one-switch horizon. A
+(``cost.plan_price``) with V the cost to go of ``cost_to_go.py``: the terminal cost beyond the one-switch horizon. A
 candidate's goal lies down V from its own switch pose (or start), in its last gear, as far
 as the rest of the horizon reaches; the leading candidate's goal then moves with its
-optimised plan (``value_updates``). Within ``finish_radius`` of the target the paper's own
+optimised plan (``updates``). Within ``finish_radius`` of the target the paper's own
 candidates, aimed at the target itself, join in. V's cheapest way on, tracked on the
-planning model, warm-starts each candidate, and so may the geometric guide; neither picks
-the goal or the winner.
+planning model, warm-starts each candidate (``mirror-cold``: the classic shapes do); it
+picks neither the goal nor the winner.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mirrorpark_env.angles import unwrap_near, wrap_angle
 from mirrorpark_env.vehicle import VehicleState
 
-from ..common.path import Path
-from .checks import Start
-from .guide import Guide
-from .plans import Candidate, Plan
-from .solvers import BranchAndBound
-from .value import CostToGo
-
-if TYPE_CHECKING:
-    from .planner import MirrorPlanner
+from ...common.path import Path
+from ..checks import Start
+from ..config import AimedConfig
+from ..core import PlannerCore
+from ..cost import plan_price
+from ..cost_to_go import CostToGo, cost_to_go
+from ..guide import Guide
+from ..plans import Candidate, Plan
+from ..seeds import TrackedSeed
+from ..solvers import BranchAndBound
+from .base import Strategy
 
 
 def last_gear(c: Candidate) -> int:
     return -c.direction if c.switch is not None else c.direction
 
 
-def driven_cost(real: np.ndarray, reverse_cost: float) -> float:
-    """Metres driven by states (x, y, theta, v, ...), each reversed metre at 1 + ``reverse_cost``."""
-    d = np.diff(real[:, :2], axis=0)
-    ds = np.hypot(d[:, 0], d[:, 1])
-    return float(ds.sum()) + reverse_cost * float(ds[real[1:, 3] < 0].sum())
+class AimedCandidates(Strategy):
+    """``mirror``: V's ways on warm-start the candidates."""
 
-
-class ValuePlanning:
-    """The ``value`` mode of a ``MirrorPlanner`` (its solver, seeds and checks)."""
-
-    def __init__(self, planner: MirrorPlanner, value: CostToGo):
-        self.pl = planner
-        self.V = value
+    def __init__(self, core: PlannerCore, config: AimedConfig):
+        super().__init__(core, config)
+        self.V: CostToGo | None = None  # built by prepare()
+        cc = core.cfg
+        self.scout_miqp = BranchAndBound(core.qp_backend, config.scout_node_limit, cc.time_limit_s)
+        self.tracked_seed = TrackedSeed(core.g, cc, core.coarse)
         self.last_gear = 0  # the gear the last plan ended in (0: none yet), for the switch price
+
+    def prepare(self) -> None:
+        """The slot's cost to go, shared by episodes in the same slot (``cost_to_go.cost_to_go``)."""
+        if self.V is None:
+            self.V = cost_to_go(self.core.g, self.cfg.lattice)
 
     def cost_to_go(self, pose, gear: int | None = None) -> float:
         """V at ``pose`` (arrived in ``gear``; None: at rest), and near the target, where V's
@@ -61,20 +63,21 @@ class ValuePlanning:
         above V (so that it ranks poses near the target and nowhere else)."""
         c = self.V.cfg
         v = self.V.lookahead(pose, gear)
-        tx, ty, tth = self.pl.g.target
+        tx, ty, tth = self.core.g.target
         e = c.finish_position * math.hypot(pose[0] - tx, pose[1] - ty) + c.finish_heading * abs(
             unwrap_near(tth, pose[2]) - pose[2]
         )
         return v + min(max(e - v, 0.0), c.finish_cap)
 
     def plan(self, state: VehicleState, xi0: np.ndarray, start: Start, t0: float) -> Plan | None:
-        pl, cfg = self.pl, self.pl.cfg
+        self.prepare()
+        pl, cfg = self.core, self.cfg
         line = pl.line_from(state.theta)
         prev = self.last_gear if abs(state.v) < 0.05 else (1 if state.v > 0 else -1)
         call = _Call(self, xi0, start, line, prev)
         picked, fixed = self._warm_starts(state, xi0, line, call), set()  # fixed: aimed at the target
         target = call.target
-        if math.hypot(xi0[0] - target[0], xi0[1] - target[1]) < cfg.value_finish_radius:
+        if math.hypot(xi0[0] - target[0], xi0[1] - target[1]) < cfg.finish_radius:
             theta_t = unwrap_near(target[2], state.theta)
             merit = lambda real: pl.checks.merit(real, target, theta_t)  # noqa: E731
             for cs in pl.shape_seeds.ranked(xi0, pl.shape_seeds.candidates(state, line), line, merit)[:2]:
@@ -84,19 +87,20 @@ class ValuePlanning:
         # the leader alone is refined (its goal moved down V from its optimised plan, its SCP
         # continued where it had not converged, on the full budget). Where no candidate gives
         # a plan, those whose branch and bound ran out of nodes are solved again on the full
-        # budget, within ``value_retry_nodes`` in all.
+        # budget, within ``retry_nodes`` in all.
         goals = [target.copy() if n in fixed else call.aim(seed, cand) for n, (cand, seed) in enumerate(picked)]
         best, best_j, lead, lead_converged = None, math.inf, -1, False
-        todo, retry_nodes = list(range(len(picked))), cfg.value_retry_nodes
+        todo, retry_nodes = list(range(len(picked))), cfg.retry_nodes
         for full in (False, True):
             cut_short = []
             for n in todo:
                 cand, seed = picked[n]
                 if not full:
-                    j, plan, cut, conv = call.solve(cand, goals[n], seed, pl.scout_miqp)
+                    j, plan, cut, conv = call.solve(cand, goals[n], seed, self.scout_miqp)
                 elif retry_nodes > 0:
                     used = call.totals["nodes"]
-                    miqp = BranchAndBound(pl.qp_backend, min(cfg.node_limit, retry_nodes), cfg.time_limit_s)
+                    cc = pl.cfg
+                    miqp = BranchAndBound(pl.qp_backend, min(cc.node_limit, retry_nodes), cc.time_limit_s)
                     j, plan, cut, conv = call.solve(cand, goals[n], seed, miqp)
                     retry_nodes -= call.totals["nodes"] - used
                 else:
@@ -128,41 +132,36 @@ class ValuePlanning:
         """J of a seed rollout, plus a steep price on its footprint's penetration."""
         gears = np.sign(real[np.abs(real[:, 3]) > 0.05, 3])
         switches = int(np.count_nonzero(gears[1:] != gears[:-1]))
-        pen = np.clip(self.pl.checks.penetration(real).max(axis=1), 0, None).sum()
+        pen = np.clip(self.core.checks.penetration(real).max(axis=1), 0, None).sum()
         v = min(self.cost_to_go(real[-1, :3]), 1e3)
-        return driven_cost(real, self.V.cfg.reverse_cost) + self.V.cfg.switch_cost * switches + v + 100.0 * float(pen)
+        return plan_price(real, switches, v, self.V.cfg.reverse_cost, self.V.cfg.switch_cost) + 100.0 * float(pen)
 
     def _warm_starts(self, state: VehicleState, xi0: np.ndarray, line, call: _Call):
         """(candidate, seed) pairs: V's cheapest way on in each first gear allowed, through
-        no switch and through one, tracked; the guide's, where the planner has one; the
-        classic shapes where V is blind; the way V prices at the car, tracked."""
-        pl, cfg, reach = self.pl, self.pl.cfg, call.reach
+        no switch and through one, tracked; the classic shapes where V is blind; the way V
+        prices at the car, tracked."""
+        pl, reach = self.core, call.reach
         picked: list[tuple[Candidate, np.ndarray]] = []
         dirs = [1 if state.v > 0 else -1] if abs(state.v) > 0.1 else [1, -1]
-        for d in dirs if cfg.value_warm_start else ():
+        for d in dirs:
             for changes in (0, 1):
                 poses = self.V.policy_path(xi0[:3], d, changes, 1.5 * reach * pl.N)
                 if poses is not None:
-                    c, seed, _ = pl.guided_seed.seed(xi0, Guide(Path.from_poses(poses), 0.0))
+                    c, seed, _ = self.tracked_seed.seed(xi0, Guide(Path.from_poses(poses), 0.0))
                     if all(c != q for q, _ in picked):
                         picked.append((c, seed))
-        if pl.guided and cfg.value_warm_start:
-            guide = pl.guide_search(xi0[:3])
-            if guide is not None:
-                c, seed, _ = pl.guided_seed.seed(xi0, guide)
-                picked = [(q, s) for q, s in picked if q != c] + [(c, seed)]
         if not picked:
             picked = self._shape_starts(state, xi0, line, call)
         # The way V prices at the car (``CostToGo.read_path``), through no switch and through
         # one: a new candidate, or a second seed for one already picked, where the better
         # seed by J (with its penetration priced) is kept. Measured on the standard sample:
         # 83.5 % parked against 83.2 %, 1.59 switches against 1.75 where it, the default
-        # before it and hybrid A* all park (docs/mirror_planner_notebook.md, 2026-12-04).
-        for changes in (0, 1) if cfg.value_warm_start and cfg.value_read_seed else ():
+        # before it and hybrid A* all park (CHANGELOG.md, 2026-12-04).
+        for changes in (0, 1):
             poses = self.V.read_path(xi0[:3], changes, 1.5 * reach * pl.N)
             if poses is None:
                 continue
-            c, seed, _ = pl.guided_seed.seed(xi0, Guide(Path.from_poses(poses), 0.0))
+            c, seed, _ = self.tracked_seed.seed(xi0, Guide(Path.from_poses(poses), 0.0))
             if c.direction not in dirs:
                 continue
             same = [n for n, (q, _) in enumerate(picked) if q == c]
@@ -174,27 +173,44 @@ class ValuePlanning:
 
     def _shape_starts(self, state: VehicleState, xi0: np.ndarray, line, call: _Call):
         """(candidate, seed) pairs from the classic shapes, best by the merit: every candidate
-        without a switch (``value_goal_shapes``: its seed sized to its own goal instead, where
-        that seed's merit is lower) and the best ``value_candidates`` with one."""
-        pl, cfg = self.pl, self.pl.cfg
+        without a switch (``_sized``) and the best ``candidates`` with one."""
+        pl = self.core
         ranked = pl.shape_seeds.ranked(xi0, pl.shape_seeds.candidates(state, line), line, self._seed_merit)
-        picked = [cs for cs in ranked if cs[0].switch is None]
-        if cfg.value_goal_shapes:
-            for n, (c, seed) in enumerate(picked):
-                aimed = pl.shape_seeds.seeds(xi0, [(c, None)], line, target=tuple(call.aim(seed, c)))[0]
-                if self._seed_merit(aimed) < self._seed_merit(seed):
-                    picked[n] = (c, aimed)
-        return picked + [cs for cs in ranked if cs[0].switch is not None][: cfg.value_candidates]
+        picked = self._sized(xi0, line, call, [cs for cs in ranked if cs[0].switch is None])
+        return picked + [cs for cs in ranked if cs[0].switch is not None][: self.cfg.candidates]
+
+    def _sized(self, xi0: np.ndarray, line, call: _Call, picked: list) -> list:
+        """The shape seeds of candidates without a switch, as used (here: as ranked)."""
+        return picked
+
+
+class ColdStart(AimedCandidates):
+    """``mirror-cold``: no path warm-starts a candidate (neither V's ways nor a guide); the
+    classic shapes seed them, and V stays the terminal cost. The ablation that shows what
+    the warm start adds."""
+
+    def _warm_starts(self, state: VehicleState, xi0: np.ndarray, line, call: _Call):
+        return self._shape_starts(state, xi0, line, call)
+
+    def _sized(self, xi0: np.ndarray, line, call: _Call, picked: list) -> list:
+        """Each seed without a switch sized to the candidate's own goal (down V from the car)
+        instead of the target, where that seed's merit (J, its penetration priced) is lower:
+        a shape sized to the target from a car across the road runs into a wall."""
+        for n, (c, seed) in enumerate(picked):
+            aimed = self.core.shape_seeds.seeds(xi0, [(c, None)], line, target=tuple(call.aim(seed, c)))[0]
+            if self._seed_merit(aimed) < self._seed_merit(seed):
+                picked[n] = (c, aimed)
+        return picked
 
 
 class _Call:
     """One planning call's scoring, aiming and solving of candidates, and its tallies."""
 
-    def __init__(self, vp: ValuePlanning, xi0: np.ndarray, start: Start, line, prev: int):
-        self.vp, self.pl, self.cfg = vp, vp.pl, vp.pl.cfg
+    def __init__(self, vp: AimedCandidates, xi0: np.ndarray, start: Start, line, prev: int):
+        self.vp, self.pl, self.cfg, self.cc = vp, vp.core, vp.cfg, vp.core.cfg
         self.xi0, self.start, self.line, self.prev = xi0, start, line, prev
         self.target = np.array(self.pl.g.target, float)
-        self.reach = self.cfg.value_reach_speed * self.cfg.dt  # [m] per step of horizon left
+        self.reach = self.cfg.reach_speed * self.cc.dt  # [m] per step of horizon left
         self.totals = {"iterations": 0, "qp_solves": 0, "nodes": 0}
         self.tried: list = []  # (candidate, J or None, status, goal) per solve
         self.partial: Plan | None = None
@@ -205,7 +221,7 @@ class _Call:
         vc = self.vp.V.cfg
         switches = (c.switch is not None) + (self.prev != 0 and c.direction != self.prev)
         v = self.vp.cost_to_go(real[-1, :3], last_gear(c))
-        return driven_cost(real, vc.reverse_cost) + vc.switch_cost * switches + v
+        return plan_price(real, switches, v, vc.reverse_cost, vc.switch_cost)
 
     def aim(self, real: np.ndarray, c: Candidate) -> np.ndarray:
         """The goal down V from the candidate's switch pose (or start) as far as the horizon left
@@ -214,7 +230,7 @@ class _Call:
         candidate stands: measured, 21 of 192 goals of candidates without a switch on every
         50th standard case)."""
         N, k = self.pl.N, 0 if c.switch is None else c.switch
-        pose = real[k * self.cfg.model_substeps, :3] if len(real) > N + 1 else real[k, :3]
+        pose = real[k * self.cc.model_substeps, :3] if len(real) > N + 1 else real[k, :3]
         goal = self.vp.V.descend(pose, last_gear(c), self.reach * (N - k), move_on=True)
         return self.target.copy() if goal is None else goal
 
@@ -224,8 +240,8 @@ class _Call:
         before its round cap); records the try."""
         pl, cfg = self.pl, self.cfg
         natural = cand.direction == pl.shape_seeds.first_direction
-        plan, st = pl.solve_candidate(
-            self.xi0, cand, goal, self.start, self.line, seed, iterations=cfg.value_iterations, band=natural, miqp=miqp
+        plan, st = pl.scp.solve(
+            self.xi0, cand, goal, self.start, self.line, seed, iterations=cfg.iterations, band=natural, miqp=miqp
         )
         for k in self.totals:
             self.totals[k] += st[k]
@@ -236,7 +252,7 @@ class _Call:
         if plan is None:
             self.tried.append((cand, None, st["status"], tuple(np.round(goal, 3))))
             return math.inf, None, st.get("cut_short", False), False
-        moved = float(np.abs(plan.states[:, 3]).sum()) * cfg.dt
+        moved = float(np.abs(plan.states[:, 3]).sum()) * self.cc.dt
         j = self.score(plan.states, cand) if moved > 0.05 else math.inf  # standing is no plan
         self.tried.append((cand, round(j, 3), st["status"], tuple(np.round(goal, 3))))
         return j, plan, st.get("cut_short", False), st.get("converged", False)
@@ -246,7 +262,7 @@ class _Call:
         its goal moves or its SCP has not converged (measured: three rounds left an entry
         into a 1.92 m angle slot 6 cm to one side, and the car then shuffled 29 times)."""
         pl, cand, plan = self.pl, best.candidate, best
-        for _ in range(self.cfg.value_updates - 1):
+        for _ in range(self.cfg.updates - 1):
             new = self.aim(plan.states, cand)
             if np.hypot(*(new[:2] - goal[:2])) < 0.05 and abs(wrap_angle(new[2] - goal[2])) < 0.02 and converged:
                 break
