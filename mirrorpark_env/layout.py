@@ -24,10 +24,11 @@ from .angles import wrap_angle
 from .config import ParkingType
 from .decompose import convex_parts
 from .geometry import ConvexSet, inward_half_plane
+from .scene import ScenarioGeometry
 from .vehicle import VehicleParams, VehicleState, footprint
 
-if TYPE_CHECKING:
-    from .scenario import Scenario, ScenarioGeometry
+if TYPE_CHECKING:  # annotations only
+    from .scenario import Scenario
 
 SCENE_PAD = 5.0  # [m] a layout's scene reaches this far beyond everything in it (when not given)
 BOUNDARY_DEPTH = 3.0  # [m] thickness of the wall outside a drivable-area boundary
@@ -190,8 +191,6 @@ class Layout:
 
     def build(self, vehicle: VehicleParams | None = None) -> ScenarioGeometry:
         """The geometry of this layout for ``vehicle``; raises ``ValueError`` naming what is wrong."""
-        from .scenario import ScenarioGeometry
-
         vehicle = vehicle or VehicleParams.table_ii()
         slot, edges, ptype, sl, sw = None, (), None, math.nan, math.nan
         if self.slot is not None:

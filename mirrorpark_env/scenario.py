@@ -19,14 +19,13 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
 from .config import ParkingType
-from .geometry import ConvexSet, FootprintChecker, HalfPlane
 from .layout import Layout, Slot
-from .vehicle import VehicleParams, VehicleState, footprint
+from .scene import ScenarioGeometry
+from .vehicle import VehicleParams, footprint
 
 SQRT2 = math.sqrt(2.0)
 DEPTH_BEYOND = 3.0  # [m] thickness of the regions behind the slot and beyond the road
@@ -140,50 +139,6 @@ _CASE_ID = re.compile(
     r"(?P<type>[a-z]+)_rw(?P<rw>[-\d.]+)_sl(?P<sl>[-\d.]+)_sw(?P<sw>[-\d.]+)"
     r"_th(?P<th>[-+\d.]+)_y(?P<y>[-\d.]+)(?:_dx(?P<dx>[-+\d.]+))?"
 )
-
-
-@dataclass(frozen=True, eq=False)
-class ScenarioGeometry:
-    """What a parking system perceives of a scene: obstacles, slot, start and target.
-
-    Built by ``Layout.build`` for grid cases and loaded layouts alike. ``obstacles`` are
-    convex parts. ``slot_edges`` are the slot's sides as inward half-planes, named
-    ``entrance`` (the slot line), ``back`` and, for parallel, ``rear``/``front`` (the slot's
-    ends behind and ahead of the parked car), for reverse and angle, ``left``/``right`` (as
-    seen from the parked car). A layout without a slot has ``slot`` None and no edges.
-    ``bounds``: the box the rear axle stays in (leaving it ends the episode, out of the
-    scene); planners search inside it.
-    """
-
-    vehicle: VehicleParams
-    obstacles: ConvexSet
-    slot: np.ndarray | None  # (4, 2)
-    slot_edges: tuple[tuple[str, HalfPlane], ...]
-    start: VehicleState
-    target: tuple[float, float, float]  # rear-axle (x, y, theta)
-    bounds: tuple[float, float, float, float]  # x_min, x_max, y_min, y_max of the rear axle
-    road_width: float = 0.0
-    parking_type: ParkingType | None = None
-    slot_length: float = math.nan
-    slot_width: float = math.nan
-    scenario: Scenario | None = None
-    layout: Layout | None = None
-
-    def edge(self, name: str) -> HalfPlane:
-        for n, hp in self.slot_edges:
-            if n == name:
-                return hp
-        raise KeyError(name)
-
-    @cached_property
-    def checker(self) -> FootprintChecker:
-        """Exact footprint-vs-obstacles collision test for this car and scene."""
-        v = self.vehicle
-        return FootprintChecker(self.obstacles, v.front_length, v.rear_overhang, 0.5 * v.width)
-
-    @property
-    def target_heading(self) -> float:
-        return self.target[2]
 
 
 def _rect(x0: float, x1: float, y0: float, y1: float) -> np.ndarray:
