@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from evaluation.collect import collect
+from evaluation.registry import make_policy
 from mirrorpark_env import Scenario
 
 CASES = ["reverse_rw6.00_sl4.82_sw2.32_th+40_y3.00", "angle_rw3.50_sl4.82_sw2.77_th+10_y1.30"]
@@ -48,12 +49,14 @@ def test_a_dagger_round_labels_the_states_the_learner_visits(require_module):
             return np.array([0.3, 0.0], dtype=np.float32), None
 
     sc = Scenario.from_case_id(CASES[0])
-    obs, labels, _, counts = rollouts(Learner(), ShadowExpert("guide-only", 20), [sc], beta=0.0, max_steps=12, seed=0)
+    obs, labels, _, counts = rollouts(
+        Learner(), ShadowExpert(make_policy("guide-only"), 20), [sc], beta=0.0, max_steps=12, seed=0
+    )
     assert len(labels) == 12 and all(len(v) == 12 for v in obs.values()) and counts["episodes"] == 1
     # Replay the learner: the same states, and an expert riding along gives the same labels.
     env = gym.make("MirrorPark-v0")
     o, info = env.reset(options={"scenario": sc})
-    expert = ShadowExpert("guide-only", 20)
+    expert = ShadowExpert(make_policy("guide-only"), 20)
     expert.reset(info["geometry"])
     for t in range(12):
         assert all(np.array_equal(obs[k][t], o[k]) for k in o)
@@ -77,7 +80,7 @@ def test_a_shielded_dagger_round_brakes_a_reckless_learner_and_labels_what_follo
 
     sc = Scenario.from_case_id("reverse_rw5.00_sl4.82_sw2.47_th+0_y2.00")
     run = lambda shield, second=False: rollouts(  # noqa: E731
-        Reckless(), ShadowExpert("guide-only", 20), [sc], 0.0, 300, 0, shield=shield, second_gear=second
+        Reckless(), ShadowExpert(make_policy("guide-only"), 20), [sc], 0.0, 300, 0, shield=shield, second_gear=second
     )
     _, bare_labels, _, bare = run(False)
     obs, labels, _, shielded = run(True)
@@ -100,7 +103,9 @@ def test_with_beta_one_a_dagger_round_is_the_experts_own_episode(require_module)
     from planners.rl.dagger import ShadowExpert, rollouts
 
     sc = Scenario.from_case_id(CASES[0])
-    obs, labels, _, counts = rollouts(None, ShadowExpert("guide-only", 6), [sc], beta=1.0, max_steps=1800, seed=0)
+    obs, labels, _, counts = rollouts(
+        None, ShadowExpert(make_policy("guide-only"), 6), [sc], beta=1.0, max_steps=1800, seed=0
+    )
     record: list = []
     info, steps = run_episode(gym.make("MirrorPark-v0"), make_policy("guide-only"), sc, record=record)
     assert info["is_success"] and counts["parked"] == 1 and len(labels) == steps
@@ -146,51 +151,6 @@ def test_slot_frame_features_are_the_pose_seen_from_the_target(require_module):
 
 
 @pytest.mark.rl
-def test_finetune_buffers_the_demos_and_keeps_the_cloned_actor_through_the_warm_up(tmp_path, require_module):
-    require_module("stable_baselines3")
-    require_module("minari")
-    import torch
-
-    from evaluation.cli import main as cli
-    from mirrorpark_env.grid import Grid
-    from planners.rl.bc import load_demos
-    from planners.rl.config import load_rl_config
-    from planners.rl.finetune import add_demos_to_buffer, q_filtered_bc_step, warm_up_critic
-    from planners.rl.train import make_model, make_train_env
-
-    collect("guide-only", [Scenario.from_case_id(c) for c in CASES], tmp_path / "demos", workers=1, progress=False)
-    obs, actions, _ = load_demos(tmp_path / "demos")
-    cfg = load_rl_config(overrides={"learning_starts": 100, "batch_size": 32})
-    model = make_model(cfg, make_train_env(cfg, Grid.from_config()))
-    from stable_baselines3.common.logger import Logger
-
-    model.set_logger(Logger(None, []))
-    assert add_demos_to_buffer(model, tmp_path / "demos") == len(actions)
-    assert model.replay_buffer.size() == len(actions)
-    actor = {k: v.clone() for k, v in model.actor.state_dict().items()}
-    critic = {k: v.clone() for k, v in model.critic.state_dict().items()}
-    warm_up_critic(model, 5)
-    assert all(torch.equal(actor[k], v) for k, v in model.actor.state_dict().items())
-    assert not all(torch.equal(critic[k], v) for k, v in model.critic.state_dict().items())
-    kept = q_filtered_bc_step(model, obs, actions, 1.0, np.random.default_rng(0))
-    assert 0.0 <= kept <= 1.0
-    assert q_filtered_bc_step(model, obs, actions, 1.0, np.random.default_rng(0), q_filter=False) == 1.0
-
-    # The whole recipe from the command line, on a tiny budget.
-    yaml = tmp_path / "rl.yaml"
-    yaml.write_text(
-        "total_steps: 200\nlearning_starts: 100\nbatch_size: 32\neval: {every_steps: 100000, episodes: 1}\n"
-        "finetune: {critic_warmup_steps: 10, bc_anneal_steps: 150}\n"
-    )
-    out = tmp_path / "ft"
-    argv = ["train-rl", "--demos", str(tmp_path / "demos"), "--finetune", "--epochs", "5", "--config", str(yaml)]
-    assert cli([*argv, "--out", str(out)]) == 0
-    summary = json.loads((out / "train.json").read_text())
-    assert summary["method"] == "bc+sac" and summary["steps_done"] == 200
-    assert summary["demo_transitions_in_buffer"] == len(actions)
-
-
-@pytest.mark.rl
 def test_a_model_trained_with_a_lidar_measures_it_where_the_env_gives_none(tmp_path, require_module):
     """The ranges the policy measures for itself are the env's own, bit for bit, along a drive."""
     require_module("stable_baselines3")
@@ -205,7 +165,7 @@ def test_a_model_trained_with_a_lidar_measures_it_where_the_env_gives_none(tmp_p
         "configs/rl_dagger.yaml",
         {"lidar": lidar, "dagger": {"cases_per_round": 3, "workers": 1}, "bc": {"epochs": 1}},
     )
-    dagger(cfg, None, tmp_path, rounds=1, progress=False)
+    dagger(cfg, None, tmp_path, rounds=1, progress=False, make_expert=make_policy)
     policy = RLPolicy(tmp_path / "model.zip")
     plain, ringed = gym.make("MirrorPark-v0"), gym.make("MirrorPark-v0", config={"lidar": lidar})
     sc = Scenario.from_case_id(CASES[0])
@@ -307,8 +267,8 @@ def test_a_markov_expert_must_price_the_gear_it_starts_in(require_module):
     from planners.rl.dagger import ShadowExpert
 
     with pytest.raises(ValueError, match="expert_markov.*hybrid-astar"):
-        ShadowExpert("hybrid-astar", 6, markov=True)
-    assert ShadowExpert("guide-only", 6, markov=True).policy.inner.markov
+        ShadowExpert(make_policy("hybrid-astar"), 6, markov=True)
+    assert ShadowExpert(make_policy("guide-only"), 6, markov=True).policy.inner.markov
 
 
 @pytest.mark.rl
@@ -329,9 +289,9 @@ def test_an_interrupted_dagger_run_resumes_to_the_weights_of_one_without_a_break
     dc = {"cases_per_round": 2, "workers": 1, "max_steps": 40, "gear": gear, "expert_markov": gear}
     over = {"lidar": {"rays": 8}, "dagger": dc, "bc": {"epochs": 2}}
     cfg = load_rl_config("configs/rl_dagger.yaml", over)
-    whole = dagger(cfg, None, tmp_path / "whole", rounds=2, progress=False)
+    whole = dagger(cfg, None, tmp_path / "whole", rounds=2, progress=False, make_expert=make_policy)
     assert (tmp_path / "whole" / "learning_curve.png").stat().st_size > 0
-    first = dagger(cfg, None, tmp_path / "cut", rounds=1, progress=False)
+    first = dagger(cfg, None, tmp_path / "cut", rounds=1, progress=False, make_expert=make_policy)
     assert [r["round"] for r in first["rounds"]] == [1]
     assert cli(["train-rl", "--resume", str(tmp_path / "cut"), "--dagger-rounds", "2"]) == 0
     resumed = json.loads((tmp_path / "cut" / "train.json").read_text())
@@ -362,7 +322,7 @@ def test_a_slower_expert_keeps_to_its_cruising_speed_and_still_parks(require_mod
     sc = Scenario.from_case_id(CASES[0])
     top = {}
     for cruise in (None, 0.5):
-        expert = ShadowExpert("guide-only", 20, markov=True, cruise_speed=cruise)
+        expert = ShadowExpert(make_policy("guide-only"), 20, markov=True, cruise_speed=cruise)
         trace: list = []
         info, _ = run_episode(gym.make("MirrorPark-v0"), expert.policy, sc, trace=trace)
         assert info["is_success"]
@@ -404,7 +364,7 @@ def test_a_markov_experts_labels_at_a_stand_carry_the_gear_it_goes_in(require_mo
 
     sc = Scenario.from_case_id(CASES[0])
     obs, labels, gears, counts = rollouts(
-        None, ShadowExpert("guide-only", 20, markov=True), [sc], beta=1.0, max_steps=1800, seed=0
+        None, ShadowExpert(make_policy("guide-only"), 20, markov=True), [sc], beta=1.0, max_steps=1800, seed=0
     )
     assert counts["parked"] == 1
     stand = standing(obs)

@@ -6,8 +6,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from evaluation.collect import build_dataset, collect, dataset_id
+from evaluation.collect import collect
 from mirrorpark_env import Scenario
+from planners.rl.demos import build_dataset, dataset_id
 
 CASES = ["reverse_rw6.00_sl4.82_sw2.32_th+40_y3.00", "angle_rw3.50_sl4.82_sw2.77_th+10_y1.30"]
 

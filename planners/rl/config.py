@@ -48,17 +48,6 @@ class BCConfig(StrictModel):
     loss: Literal["mse", "l1"] = "mse"
 
 
-class FinetuneConfig(StrictModel):
-    """RL fine-tuning from demonstrations (``train-rl --demos --finetune``, ``finetune.py``)."""
-
-    critic_warmup_steps: int = Field(2000, ge=0)  # critic updates on the demonstrations before RL
-    bc_weight: float = Field(1.0, ge=0)  # weight of the Q-filtered BC term at the start ...
-    bc_anneal_steps: int = Field(20_000, ge=1)  # ... falling linearly to 0 over these env steps
-    bc_every: int = Field(10, ge=1)  # env steps between BC updates
-    bc_gradient_steps: int = Field(1, ge=1)  # BC updates each time
-    q_filter: bool = True  # BC only where the critic rates the expert's action above the actor's
-
-
 class DaggerConfig(StrictModel):
     """DAgger with a planner as the expert (``train-rl --dagger-rounds``, ``dagger.py``)."""
 
@@ -130,7 +119,6 @@ class RLConfig(StrictModel):
     curriculum: CurriculumConfig = CurriculumConfig()
     eval: EvalConfig = EvalConfig()
     bc: BCConfig = BCConfig()
-    finetune: FinetuneConfig = FinetuneConfig()
     dagger: DaggerConfig = DaggerConfig()
     checkpoint_every_steps: int = Field(50_000, ge=1)
     parking_types: list[ParkingTypeName] = Field(default_factory=lambda: list(PARKING_TYPES), min_length=1)

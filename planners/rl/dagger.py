@@ -35,6 +35,7 @@ import json
 import multiprocessing as mp
 import os
 import time
+from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -43,6 +44,7 @@ import numpy as np
 
 from mirrorpark_env.scenario import ParkingType, Scenario
 
+from ..base import Policy
 from .bc import action_error, fit_actor, load_demos, save_trained
 from .config import RLConfig, env_config
 from .gear import (
@@ -58,21 +60,21 @@ from .gear import (
 
 
 class ShadowExpert:
-    """A named planner policy asked for its action at the states the learner visits."""
+    """A planner policy asked for its action at the states the learner visits."""
 
     def __init__(
         self,
-        planner: str,
+        policy: Policy,
         max_plans: int,
         replan_moving: bool = False,
         markov: bool = False,
         cruise_speed: float | None = None,
     ) -> None:
-        from evaluation.registry import make_policy
         from planners.common.tracking import TrackingPolicy
 
-        self.policy = make_policy(planner)
+        self.policy = policy
         inner = getattr(self.policy, "inner", self.policy)  # under the slot-frame wrapper
+        planner = getattr(inner, "name", type(inner).__name__)
         if not isinstance(inner, TrackingPolicy):
             raise ValueError(
                 f"dagger.expert: {planner!r} does not track a path in feedback; use guide-only or hybrid-astar"
@@ -172,7 +174,7 @@ def rollouts(
 
 def _worker(job: tuple) -> tuple:
     """One process's share of a round (the model loaded from its file, on the CPU)."""
-    model_path, dc, cases, beta, seed, env_cfg = job
+    model_path, dc, cases, beta, seed, env_cfg, make_expert = job
     import torch
 
     torch.set_num_threads(1)
@@ -182,7 +184,7 @@ def _worker(job: tuple) -> tuple:
 
         model = load_model(str(model_path))
     expert = ShadowExpert(
-        dc.expert, dc.expert_max_plans, dc.expert_replans_moving, dc.expert_markov, dc.expert_cruise_speed
+        make_expert(dc.expert), dc.expert_max_plans, dc.expert_replans_moving, dc.expert_markov, dc.expert_cruise_speed
     )
     obs, labels, gears, counts = rollouts(
         model, expert, cases, beta, dc.max_steps, seed, env_cfg, dc.shield, dc.shield_second_gear
@@ -245,9 +247,13 @@ def dagger(
     rounds: int = 3,
     progress: bool = True,
     resume: bool = False,
+    *,
+    make_expert: Callable[[str], Policy],
 ) -> dict[str, Any]:
     """Optionally cloning ``demos`` first, then ``rounds`` DAgger rounds; saves model.zip,
-    train.json. ``resume``: go on from the last round finished in ``out``."""
+    train.json. ``resume``: go on from the last round finished in ``out``. ``make_expert``:
+    the policy named by ``cfg.dagger.expert`` (the CLI hands in the registry's ``make_policy``;
+    a module-level function, as each round's worker processes start afresh)."""
     import torch
 
     from mirrorpark_env.grid import Grid
@@ -288,8 +294,9 @@ def dagger(
     meta = {"algo": cfg.algo, "config": {"lidar": cfg.lidar.model_dump()}}
     (out / "rounds" / "train.json").write_text(json.dumps(meta))
     try:
+        state = (obs, actions, gears, log, expert_calls, episodes)
         obs, actions, gears, log, expert_calls = _rounds(
-            cfg, learner, grid, out, rounds, (obs, actions, gears, log, expert_calls, episodes), t0, progress
+            cfg, learner, grid, out, rounds, state, t0, progress, make_expert
         )
     except KeyboardInterrupt:
         done = len((load_progress(out) or {"log": []})["log"])
@@ -344,7 +351,9 @@ def plot_rounds(log: list[dict[str, Any]], path: str | Path) -> Path:
     return Path(path)
 
 
-def _rounds(cfg: RLConfig, learner, grid, out: Path, rounds: int, state: tuple, t0: float, progress: bool) -> tuple:
+def _rounds(
+    cfg: RLConfig, learner, grid, out: Path, rounds: int, state: tuple, t0: float, progress: bool, make_expert
+) -> tuple:
     """Rounds ``len(log) + 1`` .. ``rounds`` from ``state`` = (obs, actions, gears, log,
     expert calls, episodes), each saved as it finishes; the state after the last.
     ``learner``: the model, or a ``GearedModel`` around it whose head is fitted too."""
@@ -366,7 +375,7 @@ def _rounds(cfg: RLConfig, learner, grid, out: Path, rounds: int, state: tuple, 
             cases = training_cases(grid, dc.cases_per_round, 10_000 + cfg.seed * 100 + r, types)
             seed = cfg.seed * 1000 + r * 100
             jobs = [
-                (model_path, dc, cases[w::workers], beta, seed + w, env_cfg)
+                (model_path, dc, cases[w::workers], beta, seed + w, env_cfg, make_expert)
                 for w in range(workers)
                 if cases[w::workers]
             ]

@@ -93,7 +93,9 @@ def resume_config(out: str | Path) -> RLConfig:
     p = Path(out) / "config.json"
     if not p.exists():
         raise ValueError(f"--resume: {str(p)!r} not found: {out} holds no run of train-rl")
-    return RLConfig.model_validate_json(p.read_text())
+    data = json.loads(p.read_text())
+    data.pop("finetune", None)  # retired on 2026-12-06 (fine-tuning forgot the clone); runs before it still resume
+    return RLConfig.model_validate(data)
 
 
 def train(cfg: RLConfig, out: str | Path, progress: bool = True, resume: bool = False) -> dict[str, Any]:
