@@ -4,7 +4,7 @@ which cases did it gain or lose, and at what cost?
 The question every planner change raises. Rows are matched by case; both sides are
 compared at the precision ``export_table`` stores (so an exported table and a run's own
 folder compare alike), on every column but those that depend on the machine
-(``MACHINE_COLUMNS``): a change that only makes the planner faster leaves every row
+(``schema.MACHINE_COLUMNS``): a change that only makes the planner faster leaves every row
 "the same". Times are summed and set side by side, but they say something only where
 both runs shared one machine at one time (paired).
 """
@@ -20,10 +20,7 @@ import pandas as pd
 from .causes import cause_of
 from .metrics import _plan_times, _rate
 from .report import _pct
-from .store import EXPORT_COLUMNS, exported_values
-
-# Measured, not decided: they differ between two runs of the same code.
-MACHINE_COLUMNS = ("plan_times_ms", "setup_ms", "episode_wall_s", "environment")
+from .schema import EXPORT_COLUMNS, MACHINE_COLUMNS, exported_values
 
 
 @dataclass(frozen=True)

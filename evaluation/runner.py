@@ -24,9 +24,8 @@ from mirrorpark_env.vehicle import VehicleParams
 
 from .causes import episode_cause
 from .provenance import current_id
+from .schema import MARGINS
 from .store import ResultStore
-
-MARGINS = ("M_f", "M_r", "M_e", "M_fl", "M_fr", "M_rl", "M_rr")
 
 _ENV = None  # one environment per worker process
 

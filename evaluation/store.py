@@ -27,28 +27,10 @@ from typing import Any
 
 import pandas as pd
 
+from .schema import EXPORT_COLUMNS, exported_values, type_error
+
 KEY = ["planner", "case_id"]
 ENVIRONMENTS_KEY = b"mirrorpark.environments"  # an exported table's metadata: where it ran
-# Types a journal row must have where it has the field (None stands for NaN).
-_NUMBER = (int, float)
-_FIELD_TYPES: dict[str, tuple[type, ...]] = {
-    "success": (bool,),
-    "collision": (bool,),
-    "switches": (int,),
-    "steps": (int,),
-    "planning_calls": (int,),
-    "parking_time_s": _NUMBER,
-    "path_length_m": _NUMBER,
-    "road_width": _NUMBER,
-    "slot_length": _NUMBER,
-    "slot_width": _NUMBER,
-    "theta0_deg": _NUMBER,
-    "y0": _NUMBER,
-    "episode_wall_s": _NUMBER,
-    "parking_type": (str,),
-    "failed_criterion": (str,),
-    "environment": (str,),
-}
 
 
 class StoreWarning(UserWarning):
@@ -62,13 +44,7 @@ def check_row(row: Any) -> str | None:
     for k in KEY:
         if not isinstance(row.get(k), str) or not row[k]:
             return f"{k!r} missing or not a non-empty string"
-    for k, types in _FIELD_TYPES.items():
-        v = row.get(k)
-        if v is None:
-            continue
-        if not isinstance(v, types) or (bool not in types and isinstance(v, bool)):
-            return f"{k!r} has the wrong type ({type(v).__name__})"
-    return None
+    return type_error(row)
 
 
 class ResultStore:
@@ -298,33 +274,6 @@ def read_results(paths: list[str | Path]) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
-# What the report, metrics and failure analysis read; not tracebacks or layout paths.
-EXPORT_COLUMNS = (
-    "planner", "case_id", "parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "y0", "y1",
-    "start_x_offset", "feasible", "success", "failed_criterion", "failure_cause", "failure_amount", "collision",
-    "heading_error_deg", "switches", "parking_time_s", "path_length_m", "planning_calls",
-    "plan_times_ms", "plan_iterations", "plan_qp_solves", "plan_nodes",
-    "safety_net_calls", "setup_ms", "planner_status", "error", "inside_slot", "min_clearance_m",
-    "speed_at_min_clearance", "min_clearance_away_m", "speed_at_min_clearance_away", "episode_wall_s",
-    "M_f", "M_r", "M_e", "M_fl", "M_fr", "M_rl", "M_rr", "environment",
-)  # fmt: skip
-
-
-def exported_values(df: pd.DataFrame) -> pd.DataFrame:
-    """``df`` (index reset) with its numbers rounded as ``export_table`` stores them, to what
-    each measure needs: margins, clearances and failure amounts to 0.1 mm, other lengths,
-    angles and speeds to 1e-3, times to 0.1 ms (episode wall time 10 ms). With zstd at
-    level 19 a row then takes about 70 bytes: a full-grid table is about 5 MB."""
-    out = df.reset_index(drop=True).copy()
-    fine = {"failure_amount", "min_clearance_m", "min_clearance_away_m", *(c for c in out if c.startswith("M_"))}
-    for c in out.columns:
-        if out[c].dtype.kind == "f" and c not in ("road_width", "slot_length", "slot_width", "theta0_deg", "y0"):
-            out[c] = out[c].round(1 if c.endswith("_ms") else 2 if c.endswith("_s") else 4 if c in fine else 3)
-    if "plan_times_ms" in out:
-        out["plan_times_ms"] = [None if t is None else [round(float(v), 1) for v in t] for t in out["plan_times_ms"]]
-    return out
-
-
 def export_table(
     df: pd.DataFrame,
     folder: str | Path,
@@ -332,9 +281,10 @@ def export_table(
     chunk: str | None = None,
     environments: list[dict[str, Any]] | None = None,
 ) -> Path:
-    """``df``'s rows in the report's columns, sorted by case, to ``folder/<planner>[-chunkK-of-N].parquet``
-    (zstd; replaced whole, atomically). ``mirrorpark report`` reads such files directly.
-    Per-call medians and maxima, steps and y1 are left out: they follow from what is kept.
+    """``df``'s rows in the exported columns (``schema.py``), sorted by case, to
+    ``folder/<planner>[-chunkK-of-N].parquet`` (zstd; replaced whole, atomically).
+    ``mirrorpark report`` reads such files directly. Per-call medians and maxima and steps
+    are left out: they follow from what is kept.
     Of ``environments`` (``ResultStore.environments``), those the rows name go into the
     file's metadata under ``mirrorpark.environments`` (``environments_of`` reads them)."""
     folder = Path(folder)

@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 
 from evaluation.cases import chunk
-from evaluation.store import EXPORT_COLUMNS, export_table, read_results
+from evaluation.schema import EXPORT_COLUMNS
+from evaluation.store import export_table, read_results
 
 
 @pytest.mark.parametrize(("n_items", "n"), [(10, 3), (70_434, 16), (5, 5), (3, 7)])
