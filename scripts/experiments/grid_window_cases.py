@@ -4,7 +4,7 @@
 is narrower than ``CoreConfig.lateral_window`` (``planners/mirror/cost.py``);
 every other case plans as before, to the last bit. This writes the cases it changes as a
 CSV for ``mirrorpark evaluate --cases``, so that a rerun of the grid after such a change
-runs only those. Run: ``python scripts/grid_window_cases.py OUT.csv [LATERAL_WINDOW]``.
+runs only those. Run: ``python scripts/experiments/grid_window_cases.py OUT.csv [LATERAL_WINDOW]``.
 """
 
 from __future__ import annotations

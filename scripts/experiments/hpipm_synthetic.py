@@ -1,7 +1,7 @@
 """How fast is HPIPM (a Riccati-based interior-point QP solver) at the planner's sizes?
 
     pip install casadi==3.8.2     # not a MirrorPark dependency: its wheel ships HPIPM
-    python scripts/hpipm_synthetic.py [--horizon 60] [--repeats 20]
+    python scripts/experiments/hpipm_synthetic.py [--horizon 60] [--repeats 20]
 
 HPIPM needs a QP in optimal-control form (stage-wise dynamics, costs and rows). The
 planner's QP reaches that form only after a rewrite (S and the previous command as extra
@@ -10,8 +10,7 @@ through casadi's ``conic`` interface, on a random problem of those dimensions: 1
 3 inputs and one inequality row per stage, over the planner's horizon of 60 steps. It
 prints the median time of a call, HPIPM's own solver time and its iterations, next to
 piqp on the same QP through casadi and directly (the planner's way: its sparse solver,
-set up once, then solved again). Compare with ``scripts/qp_kkt_compare.py`` (piqp on the planner's
-own QPs).
+set up once, then solved again).
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ shorter than 10 cm, at the cost to go's settings and at finer ones, on the wides
 the grid (4.5 m), where the road's far side is least in the way. It says why no
 planner here parks the shortest slots that admit an ISO pose.
 
-    python scripts/in_slot_escape.py [--max-length 4.62] [--arcs 100]
+    python scripts/experiments/in_slot_escape.py [--max-length 4.62] [--arcs 100]
 """
 
 from __future__ import annotations

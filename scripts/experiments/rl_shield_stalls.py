@@ -2,7 +2,7 @@
 often the filter overrode it, the share of its last 30 s spent standing, and the learner's
 own acceleration command while it stood (docs/rl.md).
 
-    python scripts/rl_shield_stalls.py models/dagger-markov/model.zip [--sample smoke] [--step 3]
+    python scripts/experiments/rl_shield_stalls.py models/dagger-markov/model.zip [--sample smoke] [--step 3]
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 Run it on two commits to check that a change to V's search leaves V the same bit for bit
 (the hash) and to compare its build time (median, one process):
 
-    python scripts/value_fingerprint.py
+    python scripts/experiments/value_fingerprint.py
 """
 
 from __future__ import annotations
