@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 
 from .metrics import TYPES
+from .schema import column_label
 
 SLOT = {"parallel": "slot_length", "reverse": "slot_width", "angle": "slot_width"}
 
@@ -84,8 +85,8 @@ def fig_odd(cells: pd.DataFrame, planners, t: str, out: Path, sizes) -> Path:
         share = c.groupby([slot, "y0"])["in_odd"].mean().unstack(slot)  # rows y0, columns slot size
         xs, ys = share.columns.to_numpy(float), share.index.to_numpy(float)
         mesh = ax.pcolormesh(_edges(xs), _edges(ys), share.to_numpy(float), vmin=0, vmax=1, cmap="viridis")
-        ax.set_xlabel(f"{slot.replace('_', ' ')} [m]")
-        ax.set_ylabel("y0 [m]")
+        ax.set_xlabel(column_label(slot))
+        ax.set_ylabel(column_label("y0"))
         ax.set_title(f"{p}: {sizes.get(p, {}).get(t, 0)} ODD cells")
     fig.colorbar(mesh, ax=axes[0].tolist(), label="share of theta0 in the ODD")
     fig.suptitle(f"{t}: ODD (paper Fig. 24; cells pool road widths)")
@@ -131,7 +132,7 @@ def fig_efficiency(df, planners, out: Path) -> Path:
     ok = df[df["success"].fillna(False).astype(bool)]
     for ax, col, label in (
         (axes[0], "switches", "direction switches"),
-        (axes[1], "parking_time_s", "parking time [s]"),
+        (axes[1], "parking_time_s", column_label("parking_time_s")),
     ):
         data, labels = [], []
         for t in TYPES:

@@ -20,6 +20,7 @@ from .figures import (
     fig_success_by_type,
 )
 from .metrics import TYPES, far_out, headline, odd_cells, odd_size, summary
+from .schema import column_label
 
 SPARE = 0.01  # [m] room to spare that the report's "to spare" columns ask of a slot
 
@@ -63,7 +64,7 @@ def write_report(
             out,
             "success_vs_road_width.png",
             "Success vs road width (paper Fig. 21)",
-            lambda t: "road width [m]",
+            lambda t: column_label("road_width"),
         )
     )
     figs.append(
@@ -74,7 +75,7 @@ def write_report(
             out,
             "sensitivity_slot.png",
             "Sensitivity to slot size (paper Fig. 23, column I)",
-            lambda t: f"{SLOT[t]} [m]",
+            lambda t: column_label(SLOT[t]),
         )
     )
     figs.append(
@@ -85,7 +86,7 @@ def write_report(
             out,
             "sensitivity_y0.png",
             "Sensitivity to the distance to the slot y0 (Fig. 23, II)",
-            lambda t: "y0 [m]",
+            lambda t: column_label("y0"),
         )
     )
     figs.append(
@@ -96,7 +97,7 @@ def write_report(
             out,
             "sensitivity_y1.png",
             "Sensitivity to the distance to the road boundary y1 (Fig. 23, III)",
-            lambda t: "y1 [m]",
+            lambda t: column_label("y1"),
         )
     )
     cells = odd_cells(df)

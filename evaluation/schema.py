@@ -97,6 +97,14 @@ EXPORT_COLUMNS: tuple[str, ...] = tuple(c.name for c in COLUMNS if c.exported)
 MACHINE_COLUMNS: tuple[str, ...] = tuple(c.name for c in COLUMNS if c.machine)
 
 
+def column_label(name: str) -> str:
+    """A column as the report and its figures name it: its words and its unit
+    (``parking_time_s`` -> "parking time [s]"); a column the schema does not declare is a KeyError."""
+    col = BY_NAME[name]
+    words = name if name in MARGINS else name.removesuffix(f"_{col.unit}").replace("_", " ")
+    return f"{words} [{col.unit}]" if col.unit else words
+
+
 def unknown_columns(row: dict[str, Any]) -> list[str]:
     """The row's columns that the schema does not declare."""
     return sorted(k for k in row if k not in BY_NAME)

@@ -13,7 +13,7 @@ import pytest
 from evaluation import registry
 from evaluation.diff import compare
 from evaluation.runner import run_case
-from evaluation.schema import BY_NAME, EXPORT_COLUMNS, MACHINE_COLUMNS, type_error, unknown_columns
+from evaluation.schema import BY_NAME, EXPORT_COLUMNS, MACHINE_COLUMNS, column_label, type_error, unknown_columns
 from evaluation.store import check_row, export_table, read_results
 from mirrorpark_env import Scenario
 from mirrorpark_env.layout_io import load_layouts
@@ -95,3 +95,11 @@ def test_exports_round_each_column_to_its_declared_decimals(rows, tmp_path):
     assert back.at[0, "parking_time_s"] == 12.35 and back.at[0, "M_e"] == 0.1235
     assert np.allclose(back.at[0, "plan_times_ms"], [1.3, 3.0])
     assert back.at[0, "y0"] == rows[0]["y0"]  # the case's factors as they are
+
+
+def test_the_report_names_a_column_by_its_words_and_unit():
+    assert column_label("parking_time_s") == "parking time [s]" and column_label("road_width") == "road width [m]"
+    assert column_label("theta0_deg") == "theta0 [deg]" and column_label("M_e") == "M_e [m]"
+    assert column_label("switches") == "switches"
+    with pytest.raises(KeyError):
+        column_label("not_a_column")
