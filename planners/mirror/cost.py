@@ -149,11 +149,6 @@ def true_cost(
     return cfg.w_terminal_position * pos_err**2 + cfg.w_terminal_heading * th_err**2 + run, pos_err, th_err
 
 
-def last_gear(direction: int, switch: int | None) -> int:
-    """The gear a plan of first gear ``direction`` ends in."""
-    return -direction if switch is not None else direction
-
-
 def driven_cost(real: np.ndarray, reverse_cost: float) -> float:
     """Metres driven by states (x, y, theta, v, ...), each reversed metre at 1 + ``reverse_cost``."""
     d = np.diff(real[:, :2], axis=0)

@@ -4,11 +4,11 @@ One call solves several candidates (first gear, with or without a switch), each 
 SCP with Algorithm I inside toward its own mirrored goal, and executes the one whose
 optimised trajectory is cheapest by
 
-    J = driven metres (reversing dearer) + a price per direction switch + V(end),
+    J = driven metres (reversing dearer) + a price per direction switch + V(end)
 
-(``cost.plan_price``) with V the cost to go of ``cost_to_go.py``: the terminal cost beyond the one-switch horizon. A
-candidate's goal lies down V from its own switch pose (or start), in its last gear, as far
-as the rest of the horizon reaches; the leading candidate's goal then moves with its
+(``cost.plan_price``), with V the cost to go of ``cost_to_go.py``: the terminal cost beyond
+the one-switch horizon. A candidate's goal lies down V from its own switch pose (or start),
+in its last gear, as far as the rest of the horizon reaches; the leading candidate's goal then moves with its
 optimised plan (``updates``). Within ``finish_radius`` of the target the paper's own
 candidates, aimed at the target itself, join in. V's cheapest way on, tracked on the
 planning model, warm-starts each candidate (``mirror-cold``: the classic shapes do); it
@@ -38,6 +38,7 @@ from .base import Strategy
 
 
 def last_gear(c: Candidate) -> int:
+    """The gear a candidate's plan ends in."""
     return -c.direction if c.switch is not None else c.direction
 
 
