@@ -8,10 +8,11 @@ and the value given, e.g. ``vehicle.yaml: wheelbase: Input should be greater tha
 from __future__ import annotations
 
 import math
+import types
 from enum import Enum
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal, TypeVar, get_args
+from typing import Annotated, Any, Literal, TypeVar, Union, get_args, get_origin
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
@@ -40,10 +41,29 @@ assert get_args(ParkingTypeName) == PARKING_TYPES
 M = TypeVar("M", bound=BaseModel)
 
 
+def _takes_number(annotation: Any) -> bool:
+    """Whether a field of this type holds a number (not a boolean)."""
+    args = get_args(annotation)
+    if get_origin(annotation) in (Union, types.UnionType):
+        return any(_takes_number(a) for a in args) and bool not in args
+    if get_origin(annotation) is Annotated:
+        return _takes_number(args[0])
+    return annotation in (int, float)
+
+
 class StrictModel(BaseModel):
-    """Frozen, hashable, finite numbers only, no unknown fields: the base of every config model."""
+    """Frozen, hashable, finite numbers only, no unknown fields, no boolean where a number
+    belongs (pydantic alone reads ``True`` as 1): the base of every config model."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_bool_for_a_number(cls, data: Any) -> Any:
+        for name, field in cls.model_fields.items() if isinstance(data, dict) else ():
+            if isinstance(data.get(name), bool) and _takes_number(field.annotation):
+                raise ValueError(f"{name}: expected a number, got {data[name]}")
+        return data
 
 
 class VehicleConfig(StrictModel):
@@ -166,10 +186,11 @@ class EnvConfig(StrictModel):
 def _format_errors(source: str, err: ValidationError) -> str:
     lines = []
     for e in err.errors():
-        loc = ".".join(str(p) for p in e["loc"]) or "(top level)"
+        loc = ".".join(str(p) for p in e["loc"])
+        where = f"{loc}: " if loc else ""
         got = e.get("input")
         got_s = "" if isinstance(got, dict) else f" (got {got!r})"
-        lines.append(f"{source}: {loc}: {e['msg']}{got_s}")
+        lines.append(f"{source}: {where}{e['msg'].removeprefix('Value error, ')}{got_s}")
     return "\n".join(lines)
 
 
@@ -237,6 +258,8 @@ def default_env() -> EnvConfig:
 
 def merge(base: BaseModel, overrides: dict[str, Any] | None, source: str = "config") -> Any:
     """``base`` with ``overrides`` merged in (nested dicts merge key by key), validated."""
+    if overrides is not None and not isinstance(overrides, dict):
+        raise ValueError(f"{source}: expected a dict of settings, got {type(overrides).__name__}")
     return validate(type(base), merged(base.model_dump(), overrides or {}), source=source)
 
 

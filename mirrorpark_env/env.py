@@ -131,6 +131,11 @@ class MirrorParkEnv(gym.Env):
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
+        if options is not None and not isinstance(options, dict):
+            raise ValueError(
+                "reset options: expected a dict such as {'scenario': CASE_ID} or {'layout': PATH}, "
+                f"got {type(options).__name__}"
+            )
         options = options or {}
         unknown = set(options) - {"scenario", "layout"}
         if unknown:

@@ -282,7 +282,12 @@ def from_action(params: VehicleParams, action) -> tuple[float, float]:
     Raises ``ValueError`` for a NaN, infinite or wrongly shaped action; finite values
     outside [-1, 1] are clipped, as an actuator saturates.
     """
-    arr = np.asarray(action, dtype=float)
+    raw = np.asarray(action)
+    if raw.dtype.kind not in "iuf":  # booleans, complex numbers, text, objects: not a command
+        kinds = {"b": "booleans", "c": "complex numbers", "U": "text", "S": "bytes"}
+        got = kinds.get(raw.dtype.kind, f"{type(action).__name__} values")
+        raise ValueError(f"action: expected two real numbers [accel, steer] in [-1, 1], got {got}")
+    arr = raw.astype(float)
     if arr.shape != (2,):
         raise ValueError(f"action: expected shape (2,) [accel, steer] in [-1, 1], got {arr.shape}")
     ua, ud = float(arr[0]), float(arr[1])

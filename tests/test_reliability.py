@@ -287,3 +287,58 @@ def test_json_case_files_reject_booleans_and_nested_values(tmp_path):
     f.write_text(json.dumps([row]))
     with pytest.raises(ValueError, match=r"case 1: slot_width: expected a number"):
         load_case_file(f)
+
+
+# Odd inputs: the wrong kind of value is refused with one line naming what is wrong, never
+# read as something else (pydantic alone reads True as 1; numpy reads a complex action's real part).
+
+
+@pytest.mark.parametrize(
+    ("config", "message"),
+    [
+        ([1, 2], "config: expected a dict of settings, got list"),
+        ({"dt": True}, "config: dt: expected a number, got True"),
+        ({"lidar": {"rays": True}}, "config: lidar: rays: expected a number, got True"),
+    ],
+)
+def test_a_config_of_the_wrong_kind_is_refused_by_name(config, message):
+    with pytest.raises(ValueError, match=message):
+        gym.make("MirrorPark-v0", config=config)
+
+
+def test_reset_options_that_are_not_a_dict_are_refused():
+    env = gym.make("MirrorPark-v0")
+    with pytest.raises(ValueError, match=r"reset options: expected a dict .* got str"):
+        env.reset(options="reverse_rw6.00_sl4.82_sw2.47_th+0_y1.40")
+
+
+@pytest.mark.parametrize(
+    ("action", "got"),
+    [(np.array([0.1 + 1j, 0.0]), "complex numbers"), ("ab", "text"), ([True, False], "booleans")],
+)
+def test_an_action_that_is_not_two_real_numbers_is_refused_naming_the_action(action, got):
+    env = gym.make("MirrorPark-v0").unwrapped
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=f"action: expected two real numbers .* got {got}"):
+        env.step(action)
+
+
+def test_a_layout_coordinate_given_as_a_boolean_is_refused(tmp_path):
+    import yaml
+
+    from mirrorpark_env.layout_io import load_layouts, write_layout
+
+    path = write_layout(load_layouts("configs/layouts/tpcap/per03.csv")[0], tmp_path / "a.yaml")
+    data = yaml.safe_load(path.read_text())
+    data["start"]["x"] = True
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ValueError, match="start: x: expected a number, got True"):
+        load_layouts(path)
+
+
+def test_a_planner_setting_given_as_a_boolean_is_refused():
+    from planners.mirror.config import mirror_config
+
+    with pytest.raises(ValueError, match="horizon: expected a number"):
+        mirror_config(horizon=True)
+    assert mirror_config(end_settled=False).core.end_settled is False  # a boolean where one belongs
