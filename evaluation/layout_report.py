@@ -9,6 +9,7 @@ slot, start and target, and every planner's driven path).
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -113,6 +114,18 @@ def draw_layout(layout: Layout, rows: pd.DataFrame, path: Path) -> Path:
     return path
 
 
+def _file_stem(name: str, used: set[str]) -> str:
+    """A file name for a layout's figure inside the report's folder, whatever its name holds
+    (``../x``, ``a/b``, ``#``): letters, digits, ``.``, ``-`` and ``_`` only, unique among ``used``."""
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "layout"
+    unique, n = stem, 1
+    while unique in used:
+        n += 1
+        unique = f"{stem}_{n}"
+    used.add(unique)
+    return unique
+
+
 def write_layout_report(df: pd.DataFrame, layouts: list[Layout], out: str | Path) -> Path:
     """``out/layouts.md`` and ``out/img/<layout>.png`` for the rows of ``layouts``."""
     out = Path(out)
@@ -129,9 +142,10 @@ def write_layout_report(df: pd.DataFrame, layouts: list[Layout], out: str | Path
     if "plan_time_median_ms" in show:
         show["plan_time_median_ms"] = [_cell(v, ".1f") for v in show["plan_time_median_ms"]]
     lines += [*_markdown(show), ""]
+    used: set[str] = set()
     for lay in layouts:
         rows = df[df["case_id"] == lay.name]
-        img = draw_layout(lay, rows, out / "img" / f"{lay.name.replace('#', '_')}.png")
+        img = draw_layout(lay, rows, out / "img" / f"{_file_stem(lay.name, used)}.png")
         lines.append(f"![{lay.name}](img/{img.name})")
     path = out / "layouts.md"
     path.write_text("\n".join(lines) + "\n")

@@ -342,3 +342,24 @@ def test_a_planner_setting_given_as_a_boolean_is_refused():
     with pytest.raises(ValueError, match="horizon: expected a number"):
         mirror_config(horizon=True)
     assert mirror_config(end_settled=False).core.end_settled is False  # a boolean where one belongs
+
+
+def test_a_layouts_name_never_writes_outside_the_report_folder(tmp_path):
+    """Names holding ``..`` or ``/`` wrote their figure into the parent folder, or linked a
+    file that was not there; each figure now lies in ``img/`` under a safe, unique name, and
+    the report links exactly that file."""
+    import dataclasses
+
+    from evaluation.layout_report import write_layout_report
+    from evaluation.runner import run_case
+    from mirrorpark_env.layout_io import load_layouts
+
+    base = load_layouts("configs/layouts/tpcap/per03.csv")[0]
+    layouts = [dataclasses.replace(base, name=n) for n in ("../../escaped", "a/b", "a_b")]
+    df = pd.DataFrame([run_case("guide-only", lay) for lay in layouts])
+    out = tmp_path / "deep" / "out"
+    report = write_layout_report(df, layouts, out).read_text()
+    written = sorted(p.relative_to(tmp_path).as_posix() for p in tmp_path.rglob("*.png"))
+    assert written == ["deep/out/img/a_b.png", "deep/out/img/a_b_2.png", "deep/out/img/escaped.png"]
+    for name in ("escaped.png", "a_b.png", "a_b_2.png"):
+        assert f"(img/{name})" in report
