@@ -308,9 +308,12 @@ def _run_batch(task: tuple) -> None:
         _RESULTS.put((True, out))
 
 
-def slot_of(sc: Scenario) -> tuple:
-    """What a scenario's slot geometry depends on (its start does not)."""
-    return (sc.parking_type, sc.road_width, sc.slot_length, sc.slot_width)
+def slot_of(case: Scenario | Layout) -> tuple:
+    """What a case's slot geometry depends on (its start does not): a grid case's slot
+    factors; a layout is a scene of its own."""
+    if isinstance(case, Layout):
+        return ("layout", case.name)
+    return (case.parking_type, case.road_width, case.slot_length, case.slot_width)
 
 
 def _pool_context():

@@ -363,3 +363,14 @@ def test_a_layouts_name_never_writes_outside_the_report_folder(tmp_path):
     assert written == ["deep/out/img/a_b.png", "deep/out/img/a_b_2.png", "deep/out/img/escaped.png"]
     for name in ("escaped.png", "a_b.png", "a_b_2.png"):
         assert f"(img/{name})" in report
+
+
+def test_layouts_run_on_two_workers(tmp_path):
+    """Workers take a slot's cases together; a layout is a scene of its own (grouping read
+    grid factors that a layout does not have, and two layouts on two workers crashed)."""
+    from mirrorpark_env.layout_io import load_layouts
+
+    layouts = [*load_layouts("configs/layouts/tpcap/per03.csv"), *load_layouts("configs/layouts/tpcap/par02.csv")]
+    evaluate("guide-only", layouts, tmp_path / "r", workers=2, progress=False)
+    rows = read_results([tmp_path / "r"])
+    assert sorted(rows["case_id"]) == ["par02", "per03"] and rows["error"].isna().all()
