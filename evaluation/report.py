@@ -20,7 +20,7 @@ from .figures import (
     fig_success_by_type,
 )
 from .metrics import TYPES, far_out, headline, odd_cells, odd_size, summary
-from .schema import column_label
+from .schema import column_label, with_every_column
 
 SPARE = 0.01  # [m] room to spare that the report's "to spare" columns ask of a slot
 
@@ -51,6 +51,7 @@ def write_report(
     notes_text = Path(notes).read_text() if notes is not None else None
     if "y1" not in df:
         df = df.assign(y1=df["road_width"] - df["y0"])
+    df = with_every_column(df)  # a run whose every case errored has no outcome columns
     planners = sorted(df["planner"].unique())
     if baseline is None:  # the paper compares against its search-based baseline
         baseline = "hybrid-astar" if "hybrid-astar" in planners else None
@@ -102,7 +103,8 @@ def write_report(
     )
     cells = odd_cells(df)
     sizes = odd_size(df)
-    figs += [fig_odd(cells, planners, t, out, sizes) for t in TYPES if (df["parking_type"] == t).any()]
+    # a type's ODD map where it has cells (layouts, without the grid's y0, have none)
+    figs += [fig_odd(cells, planners, t, out, sizes) for t in TYPES if (cells["parking_type"] == t).any()]
     figs.append(fig_efficiency(df, planners, out))
     figs.append(fig_plan_time(df, planners, out))
     if "min_clearance_m" in df and df["min_clearance_m"].notna().any():

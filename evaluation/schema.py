@@ -105,6 +105,13 @@ def column_label(name: str) -> str:
     return f"{words} [{col.unit}]" if col.unit else words
 
 
+def with_every_column(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with every declared column, those it lacks empty: a run whose every case
+    errored has no outcome columns, and readers need not ask for each."""
+    missing = [c.name for c in COLUMNS if c.name not in df.columns]
+    return df.assign(**dict.fromkeys(missing, None)) if missing else df
+
+
 def unknown_columns(row: dict[str, Any]) -> list[str]:
     """The row's columns that the schema does not declare."""
     return sorted(k for k in row if k not in BY_NAME)

@@ -374,3 +374,8 @@ def test_layouts_run_on_two_workers(tmp_path):
     evaluate("guide-only", layouts, tmp_path / "r", workers=2, progress=False)
     rows = read_results([tmp_path / "r"])
     assert sorted(rows["case_id"]) == ["par02", "per03"] and rows["error"].isna().all()
+    # ... and the report over them is written (it drew an ODD map without cells: no y0 in a layout)
+    from evaluation.report import write_report
+
+    report = write_report(rows, tmp_path / "report")
+    assert report.exists() and not list((tmp_path / "report").glob("odd_*.png"))

@@ -103,3 +103,11 @@ def test_the_report_names_a_column_by_its_words_and_unit():
     assert column_label("switches") == "switches"
     with pytest.raises(KeyError):
         column_label("not_a_column")
+
+
+def test_a_report_over_a_run_whose_every_case_errored_is_written(rows, tmp_path):
+    """Such a run has no outcome columns; the report reads every declared column all the same."""
+    from evaluation.report import write_report
+
+    report = write_report(pd.DataFrame(rows[-1:]), tmp_path / "r").read_text()
+    assert "| guide-only | 1 | 0.0 % |" in report
