@@ -33,6 +33,7 @@ if TYPE_CHECKING:  # annotations only
 SCENE_PAD = 5.0  # [m] a layout's scene reaches this far beyond everything in it (when not given)
 BOUNDARY_DEPTH = 3.0  # [m] thickness of the wall outside a drivable-area boundary
 OVERLAP_TOL = 1e-3  # [m] a start or target may touch an obstacle, not overlap it deeper
+MAX_EXTENT = 10_000.0  # [m] a parking scene: everything in it lies within this of the target (after recentring)
 
 
 def _pose(name: str, value) -> tuple[float, float, float]:
@@ -224,6 +225,29 @@ class Layout:
                 raise ValueError(f"{self.name}: target: the car at the target pose is not inside the slot")
         return g
 
+    def check(self, vehicle: VehicleParams | None = None) -> ScenarioGeometry:
+        """The geometry for ``vehicle`` (``build``), after refusing a scene no car can start in:
+        coordinates farther than ``MAX_EXTENT`` from the target, a start or target whose rear
+        axle lies outside the scene's bounds or its drivable boundary, or a car overlapping
+        an obstacle there. Raises ``ValueError`` naming the problem."""
+        pts = [np.asarray([self.start[:2], self.target[:2]]), *self.obstacles]
+        if self.boundary is not None:
+            pts.append(self.boundary)
+        far = float(np.abs(np.concatenate(pts) - np.asarray(self.target[:2])).max())
+        if not far <= MAX_EXTENT:
+            raise ValueError(
+                f"coordinates: all must lie within {MAX_EXTENT:g} m of the target, one lies {far:.3g} m off"
+            )
+        x0, x1, y0, y1 = self.scene_bounds()
+        for what, (x, y, _) in (("start", self.start), ("target", self.target)):
+            if not (x0 <= x <= x1 and y0 <= y <= y1):
+                raise ValueError(
+                    f"{what}: the rear axle at ({x:g}, {y:g}) lies outside the scene's bounds {self.bounds}"
+                )
+            if self.boundary is not None and not _covers(self.boundary, (x, y)):
+                raise ValueError(f"{what}: the rear axle at ({x:g}, {y:g}) lies outside the drivable boundary")
+        return self.build(vehicle)
+
     def recentred(self, beyond: float = 1000.0) -> Layout:
         """This layout moved so that the target lies at the origin, if anything in it lies
         farther than ``beyond`` metres from the origin (coordinates thousands of metres away
@@ -250,6 +274,13 @@ class Layout:
             road_width=self.road_width,
             origin=(float(self.origin[0] + o[0]), float(self.origin[1] + o[1])),
         )
+
+
+def _covers(polygon: np.ndarray, point) -> bool:
+    """Whether ``polygon`` holds ``point`` (its edge included)."""
+    from shapely.geometry import Point, Polygon
+
+    return bool(Polygon(polygon).covers(Point(point)))
 
 
 def _wall_outside(boundary: np.ndarray) -> list[np.ndarray]:

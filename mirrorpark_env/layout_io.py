@@ -100,7 +100,7 @@ def from_model(m: LayoutModel, name: str) -> Layout:
         road_width=m.road_width,
     )
     layout = layout.recentred()
-    _ = layout.parts  # decompose now: a bad polygon fails at load, named
+    layout.check()  # at load, named: a bad polygon, a start no car can take
     return layout
 
 
@@ -229,7 +229,7 @@ def _tpcap(p: Path) -> list[Layout]:
             start, target, polys = parse_tpcap_row(row)
             slot, _ = infer_slot(polys, start, target)
             layout = Layout(tuple(polys), start, target, slot=slot, name=name).recentred()
-            _ = layout.parts  # decompose now: a bad polygon fails at load, named
+            layout.check()  # at load, named: a bad polygon, a start no car can take
             out.append(layout)
         except ValueError as err:
             raise ValueError(f"{p}: row {n}: {err}") from None

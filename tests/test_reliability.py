@@ -379,3 +379,40 @@ def test_layouts_run_on_two_workers(tmp_path):
 
     report = write_report(rows, tmp_path / "report")
     assert report.exists() and not list((tmp_path / "report").glob("odd_*.png"))
+
+
+def _layout_file(tmp_path, name: str, change) -> str:
+    """per03 as a native YAML file, changed by ``change(data)``."""
+    import yaml
+
+    from mirrorpark_env.layout_io import load_layouts, write_layout
+
+    path = write_layout(load_layouts("configs/layouts/tpcap/per03.csv")[0], tmp_path / f"{name}.yaml")
+    data = yaml.safe_load(path.read_text())
+    change(data)
+    path.write_text(yaml.safe_dump(data))
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    ("name", "change", "message"),
+    [
+        ("far", lambda d: d["start"].update(x=1e300), "coordinates: all must lie within 10000 m of the target"),
+        ("inside", lambda d: d["start"].update(x=-12.98, y=29.06), "start: the car at .* overlaps obstacle part 0"),
+        ("bounds", lambda d: d.update(bounds=[-50, 50, -50, 0]), "start: the rear axle at .* outside the scene.s bounds"),
+        (
+            "boundary",
+            lambda d: d.update(boundary=[[-30, 0], [0, 0], [0, 40], [-30, 40]]) or d["start"].update(x=5.0),
+            "start: the rear axle at .* outside the drivable boundary",
+        ),
+    ],
+)
+def test_a_layout_no_car_can_start_in_is_refused_at_load_before_any_case_runs(tmp_path, capsys, name, change, message):
+    from mirrorpark_env.layout_io import load_layouts
+
+    path = _layout_file(tmp_path, name, change)
+    with pytest.raises(ValueError, match=f"{name}.yaml: .*{message}"):
+        load_layouts(path)
+    out = tmp_path / "out"
+    assert cli(["evaluate", "--planner", "guide-only", "--layouts", path, "--out", str(out), "--quiet"]) == 2
+    assert "mirrorpark: error:" in capsys.readouterr().err and not out.exists()
