@@ -25,7 +25,7 @@ from mirrorpark_env.vehicle import VehicleParams
 from .causes import episode_cause
 from .provenance import current_id
 from .schema import MARGINS
-from .store import ResultStore
+from .store import ResultStore, locked
 
 _ENV = None  # one environment per worker process
 
@@ -181,7 +181,6 @@ def evaluate(
     """Run ``planner`` over ``scenarios`` into the store at ``out``; resume where it stopped,
     if its rows of ``planner`` came from this code (``provenance.check_resume``; ``mixed_code``:
     whatever code they came from)."""
-    from .provenance import check_resume
     from .registry import make_policy
 
     make_policy(planner)  # an unknown planner fails now, not in every worker
@@ -191,6 +190,24 @@ def evaluate(
     if workers < 1:
         raise ValueError(f"workers: must be >= 1, got {workers}")
     store = ResultStore(out)
+    with locked(store.folder):  # one run per results folder at a time
+        _run_into(store, planner, scenarios, workers, backend, ray_address, progress, mixed_code)
+    return store
+
+
+def _run_into(
+    store: ResultStore,
+    planner: str,
+    scenarios: Iterable[Scenario],
+    workers: int,
+    backend: str,
+    ray_address: str | None,
+    progress: bool,
+    mixed_code: bool,
+) -> None:
+    """``evaluate``'s run, the folder locked: the cases not yet stored, their rows appended."""
+    from .provenance import check_resume
+
     done = store.done()
     check_resume(store.environments(), planner, sum(p == planner for p, _ in done), store.folder, mixed_code)
     todo = [sc for sc in unique(scenarios)[0] if (planner, sc.case_id) not in done]
@@ -224,7 +241,6 @@ def evaluate(
     finally:
         bar.close()
     store.compact()
-    return store
 
 
 def _worker_signals() -> None:

@@ -21,7 +21,10 @@ import json
 import math
 import os
 import secrets
+import socket
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +48,60 @@ def check_row(row: Any) -> str | None:
         if not isinstance(row.get(k), str) or not row[k]:
             return f"{k!r} missing or not a non-empty string"
     return type_error(row)
+
+
+@contextmanager
+def locked(folder: str | Path) -> Iterator[None]:
+    """One run at a time in a results folder: ``.lock`` holds the owner's PID and host while it
+    runs. Another run refuses ("OUT is in use by PID N on HOST"); a lock whose process no
+    longer runs on this host (a run killed outright) is taken over with a warning."""
+    path = Path(folder) / ".lock"
+    me = f"{os.getpid()} {socket.gethostname()}"
+    while True:
+        try:
+            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            pid, host = _lock_owner(path)
+            if _running(pid, host):
+                raise ValueError(
+                    f"{folder} is in use by PID {pid} on {host}: wait for that run, or give another --out"
+                ) from None
+            took = f"{folder}: took over the lock of PID {pid} on {host}, which no longer runs"
+            warnings.warn(took, StoreWarning, stacklevel=3)
+            path.unlink(missing_ok=True)
+            continue
+        with os.fdopen(fd, "w") as f:
+            f.write(me)
+        break
+    try:
+        yield
+    finally:
+        if _lock_owner(path) == (os.getpid(), socket.gethostname()):
+            path.unlink(missing_ok=True)
+
+
+def _lock_owner(path: Path) -> tuple[int, str]:
+    """(PID, host) written in a lock file; (0, "?") where it cannot be read."""
+    try:
+        pid, host = path.read_text().split(maxsplit=1)
+        return int(pid), host.strip()
+    except (OSError, ValueError):
+        return 0, "?"
+
+
+def _running(pid: int, host: str) -> bool:
+    """Whether the lock's owner may still run: on another host, assumed so."""
+    if host != socket.gethostname():
+        return True
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 class ResultStore:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 
 import gymnasium as gym
 import numpy as np
@@ -399,7 +400,11 @@ def _layout_file(tmp_path, name: str, change) -> str:
     [
         ("far", lambda d: d["start"].update(x=1e300), "coordinates: all must lie within 10000 m of the target"),
         ("inside", lambda d: d["start"].update(x=-12.98, y=29.06), "start: the car at .* overlaps obstacle part 0"),
-        ("bounds", lambda d: d.update(bounds=[-50, 50, -50, 0]), "start: the rear axle at .* outside the scene.s bounds"),
+        (
+            "bounds",
+            lambda d: d.update(bounds=[-50, 50, -50, 0]),
+            "start: the rear axle at .* outside the scene.s bounds",
+        ),
         (
             "boundary",
             lambda d: d.update(boundary=[[-30, 0], [0, 0], [0, 40], [-30, 40]]) or d["start"].update(x=5.0),
@@ -416,3 +421,42 @@ def test_a_layout_no_car_can_start_in_is_refused_at_load_before_any_case_runs(tm
     out = tmp_path / "out"
     assert cli(["evaluate", "--planner", "guide-only", "--layouts", path, "--out", str(out), "--quiet"]) == 2
     assert "mirrorpark: error:" in capsys.readouterr().err and not out.exists()
+
+
+# One run per results folder: two runs appending to one store lost rows and repeated cases.
+
+
+def test_a_second_run_on_a_folder_in_use_is_refused_and_the_first_loses_nothing(tmp_path, quick, capsys):
+    import subprocess
+    import sys
+    import time
+
+    from evaluation.store import locked
+
+    out = tmp_path / "out"
+    cases = [Scenario.from_case_id(c) for c in (A, B)]
+    with locked(out.parent):  # this process holds a folder: a run there is refused, naming the holder
+        with pytest.raises(ValueError, match=rf"is in use by PID {os.getpid()} on "):
+            evaluate("quick", cases, out.parent, workers=1, progress=False)
+    holder = subprocess.Popen(  # another process holds ``out`` as a run does
+        [sys.executable, "-c", f"from evaluation.store import locked\nwith locked({str(out)!r}): input()"],
+        stdin=subprocess.PIPE,
+    )
+    try:
+        out.mkdir()
+        for _ in range(200):
+            if (out / ".lock").exists():
+                break
+            time.sleep(0.05)
+        assert cli(["evaluate", "--planner", "quick", "--sample", "smoke", "--out", str(out), "--quiet"]) == 2
+        err = capsys.readouterr().err
+        assert f"is in use by PID {holder.pid}" in err and err.count("\n") == 1
+        assert not (out / "journal.jsonl").exists()
+        holder.kill()  # killed outright, its lock left behind: the next run takes it over
+        holder.wait()
+        with pytest.warns(StoreWarning, match=f"took over the lock of PID {holder.pid}"):
+            evaluate("quick", cases, out, workers=1, progress=False)
+    finally:
+        holder.kill()
+    rows = read_results([out])
+    assert sorted(rows["case_id"]) == sorted([A, B]) and not (out / ".lock").exists()
