@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -66,6 +67,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
     scenarios = _cases(args)
     out = Path(args.out)
+    if args.export:
+        _writable_folder(Path(args.export), "--export")  # before any case runs, not after all of them
     store = evaluate(
         args.planner,
         scenarios,
@@ -101,6 +104,16 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             f"reverse {pct(r['reverse'])}, angle {pct(r['angle'])}); results in {store.parquet}"
         )
     return 0
+
+
+def _writable_folder(folder: Path, what: str) -> None:
+    """Make ``folder`` or refuse, naming ``what``, where it cannot be made or written."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ValueError(f"{what}: cannot create {folder} ({err.strerror})") from None
+    if not os.access(folder, os.W_OK):
+        raise ValueError(f"{what}: {folder} is not writable")
 
 
 def cmd_collect(args: argparse.Namespace) -> int:
@@ -143,6 +156,8 @@ def cmd_main(args: argparse.Namespace) -> int:
 
     scenarios = _cases(args)
     out = Path(args.out)
+    if args.export:
+        _writable_folder(Path(args.export), "--export")  # before any case runs, not after all of them
     planners = list(MAIN) if args.planners is None else args.planners
     for p in planners:
         evaluate(p, scenarios, out / p, workers=args.workers, progress=not args.quiet, mixed_code=args.mixed_code)

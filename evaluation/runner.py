@@ -6,6 +6,7 @@ Rows are appended to the store as they finish; a rerun over the same folder resu
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import queue
@@ -85,13 +86,25 @@ def _feasible(case: Scenario | Layout) -> bool:
 
 
 def unique(scenarios: Iterable[Scenario]) -> tuple[list[Scenario], int]:
-    """The scenarios in order with repeats (same id) dropped, and how many were dropped."""
-    out, seen, n_in = [], set(), 0
+    """The scenarios in order with repeats (same id) dropped, and how many were dropped. Two
+    grid cases that share an id but differ (by less than the ids' precision) are refused,
+    both named: one would silently stand for the other."""
+    out, seen, n_in = [], {}, 0
     for sc in scenarios:
         n_in += 1
-        if sc.case_id not in seen:  # a Scenario's or a Layout's
-            seen.add(sc.case_id)
+        first = seen.get(sc.case_id)  # a Scenario's or a Layout's
+        if first is None:
+            seen[sc.case_id] = sc
             out.append(sc)
+        elif isinstance(sc, Scenario) and sc != first:
+            differ = "; ".join(
+                f"{f.name} {getattr(first, f.name)!r} and {getattr(sc, f.name)!r}"
+                for f in dataclasses.fields(sc)
+                if getattr(first, f.name) != getattr(sc, f.name)
+            )
+            raise ValueError(
+                f"cases: two share the id {sc.case_id} but differ ({differ}): ids keep 1e-9; give each once"
+            )
     return out, n_in - len(out)
 
 

@@ -210,6 +210,10 @@ class ResultStore:
             what = f"{path}: unreadable ({type(err).__name__})"
             if self.writable:
                 aside = path.with_name(path.name + ".unreadable")
+                n = 1
+                while aside.exists():  # an earlier damaged copy stays: set-aside files never replace each other
+                    n += 1
+                    aside = path.with_name(f"{path.name}.{n}.unreadable")
                 path.rename(aside)
                 what += f"; moved to {aside.name}, its cases rerun"
             warnings.warn(what, StoreWarning, stacklevel=3)

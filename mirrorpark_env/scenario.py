@@ -151,14 +151,17 @@ def start_fits_road(vehicle: VehicleParams, theta0, y0, road_width, tol: float =
     return (ys.min(axis=-1) >= -tol) & (ys.max(axis=-1) <= np.asarray(road_width) + tol)
 
 
+ID_PRECISION = 1e-9  # values closer than this share a case id (the grid's steps carry float noise below it)
+
+
 def _fmt(value: float, decimals: int, sign: bool = False) -> str:
-    """``value`` with ``decimals`` decimals if that is exact (to 1e-9), else to 1e-6 with
-    trailing zeros dropped."""
+    """``value`` with ``decimals`` decimals if that is exact to ``ID_PRECISION``, else to 1e-9
+    with trailing zeros (and a trailing point) dropped."""
     plus = "+" if sign else ""
     s = f"{value:{plus}.{decimals}f}"
-    if abs(float(s) - value) <= 1e-9:
+    if abs(float(s) - value) <= ID_PRECISION:
         return s
-    return f"{value:{plus}.6f}".rstrip("0")
+    return f"{value:{plus}.9f}".rstrip("0").rstrip(".")
 
 
 def slot_fits_car(vehicle: VehicleParams, slot_length: float, slot_width: float) -> bool:

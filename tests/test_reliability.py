@@ -460,3 +460,36 @@ def test_a_second_run_on_a_folder_in_use_is_refused_and_the_first_loses_nothing(
         holder.kill()
     rows = read_results([out])
     assert sorted(rows["case_id"]) == sorted([A, B]) and not (out / ".lock").exists()
+
+
+def test_case_ids_keep_1e9_and_cases_closer_than_that_are_refused_both_named():
+    from evaluation.runner import unique
+
+    near = Scenario.from_degrees("reverse", 6.0, 4.82, 2.32, -30.0000004, 2.4)
+    assert near.case_id == "reverse_rw6.00_sl4.82_sw2.32_th-30.0000004_y2.40"  # no trailing point
+    same = Scenario.from_degrees("reverse", 6.0, 4.82, 2.32, -30.0, 2.4)
+    closer = Scenario.from_degrees("reverse", 6.0, 4.82, 2.32, -30.0000000001, 2.4)
+    assert closer.case_id == same.case_id
+    assert unique([same, Scenario.from_case_id(same.case_id), near]) == ([same, near], 1)  # a true repeat
+    with pytest.raises(ValueError, match=r"share the id reverse_rw6\.00_sl4\.82_sw2\.32_th-30_y2\.40 .*theta0"):
+        unique([same, closer])
+
+
+def test_an_export_folder_that_cannot_be_made_is_refused_before_any_case_runs(tmp_path, quick, capsys):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    out = tmp_path / "out"
+    argv = ["evaluate", "--planner", "quick", "--sample", "smoke", "--out", str(out), "--export", str(blocker / "x")]
+    assert cli([*argv, "--quiet"]) == 2
+    assert "--export: cannot create" in capsys.readouterr().err and not _Quick.seen and not out.exists()
+
+
+def test_damaged_files_set_aside_never_replace_each_other(tmp_path):
+    store = ResultStore(tmp_path / "s")
+    store.parquet.write_bytes(b"not parquet, once")
+    with pytest.warns(StoreWarning, match="moved to results.parquet.unreadable"):
+        store.table()
+    store.parquet.write_bytes(b"not parquet, twice")
+    with pytest.warns(StoreWarning, match="moved to results.parquet.2.unreadable"):
+        store.table()
+    assert (tmp_path / "s" / "results.parquet.unreadable").read_bytes() == b"not parquet, once"
