@@ -190,8 +190,8 @@ def _format_errors(source: str, err: ValidationError) -> str:
         where = f"{loc}: " if loc else ""
         got = e.get("input")
         got_s = "" if isinstance(got, dict) else f" (got {got!r})"
-        lines.append(f"{source}: {where}{e['msg'].removeprefix('Value error, ')}{got_s}")
-    return "\n".join(lines)
+        lines.append(f"{where}{e['msg'].removeprefix('Value error, ')}{got_s}")
+    return f"{source}: " + "; ".join(lines)  # one line, every bad field named
 
 
 def validate(model: type[M], data: Any, source: str = "config") -> M:
