@@ -19,6 +19,7 @@ from mirrorpark_env.layout import Layout
 from mirrorpark_env.vehicle import VehicleParams, footprint
 
 from .metrics import comfortable
+from .schema import with_every_column
 
 
 def _cell(v, fmt: str) -> str:
@@ -130,7 +131,7 @@ def write_layout_report(df: pd.DataFrame, layouts: list[Layout], out: str | Path
     """``out/layouts.md`` and ``out/img/<layout>.png`` for the rows of ``layouts``."""
     out = Path(out)
     names = {lay.name for lay in layouts}
-    df = df[df["case_id"].isin(names)]
+    df = with_every_column(df[df["case_id"].isin(names)])  # a run whose every case errored has no outcomes
     table = layout_table(df)
     lines = ["# Layouts", "", *summary_lines(df), ""]
     show = table.copy()

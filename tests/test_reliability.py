@@ -493,3 +493,27 @@ def test_damaged_files_set_aside_never_replace_each_other(tmp_path):
     with pytest.warns(StoreWarning, match="moved to results.parquet.2.unreadable"):
         store.table()
     assert (tmp_path / "s" / "results.parquet.unreadable").read_bytes() == b"not parquet, once"
+
+
+class _Broken(Policy):
+    """Raises at reset: every case of a run becomes an error row."""
+
+    name = "broken"
+
+    def reset(self, geometry):
+        raise RuntimeError("broken on purpose")
+
+    def act(self, obs, info):
+        return np.zeros(2, dtype=np.float32)
+
+
+def test_a_layout_run_where_every_case_errors_ends_with_its_report(tmp_path, monkeypatch, capsys):
+    """Its rows lack every outcome column; the summary and the layouts report read them all
+    the same (it ended in a traceback after the rows were saved)."""
+    monkeypatch.setitem(registry.PLANNERS, "broken", _Broken)
+    out = tmp_path / "out"
+    argv = ["evaluate", "--planner", "broken", "--workers", "1", "--layouts", "configs/layouts/tpcap/per03.csv"]
+    assert cli([*argv, "--out", str(out), "--quiet"]) == 0
+    assert "broken: 1 layouts; report in" in capsys.readouterr().out
+    assert "| per03 | broken |" in (out / "layouts.md").read_text()
+    assert read_results([out])["error"].str.contains("broken on purpose").all()
