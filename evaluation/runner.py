@@ -10,6 +10,7 @@ import dataclasses
 import math
 import os
 import queue
+import sys
 import time
 import traceback
 from collections.abc import Callable, Hashable, Iterable
@@ -264,6 +265,11 @@ def _worker_signals() -> None:
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if sys.platform.startswith("linux"):  # die with the parent, however it dies: SIGKILL leaves it no clean-up
+        import ctypes
+
+        PR_SET_PDEATHSIG = 1
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
 
 
 def run_parallel(

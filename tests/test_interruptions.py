@@ -253,3 +253,26 @@ def test_a_store_cut_at_any_byte_loses_no_finished_row(tmp_path_factory, n, part
     again.compact()
     df = read_results([folder])
     assert sorted(df["case_id"]) == sorted(f"case{i:04d}" for i in range(n))
+
+
+def test_sigkill_to_the_run_alone_takes_its_workers_with_it(tmp_path):
+    """SIGKILL to the main process only: no clean-up runs, and the workers went on to the
+    end of the case in hand (about 5 s); they now die with their parent."""
+    out = tmp_path / "o"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _SLOW_RUN.format(out=str(out), n=40, delay=3.0)],
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,  # its own process group: the workers' too
+    )
+    _wait_for_rows(out, 2)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait(timeout=10)
+    t0 = time.time()
+    while time.time() - t0 < 1.5:
+        try:
+            os.killpg(proc.pid, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    raise AssertionError("worker processes still ran 1.5 s after the run was killed")
