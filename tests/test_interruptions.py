@@ -285,3 +285,22 @@ def _pgid(pid: int) -> int | None:
         return os.getpgid(pid)
     except ProcessLookupError:
         return None
+
+
+def test_two_runs_on_one_folder_the_second_is_refused_and_the_first_loses_nothing(tmp_path):
+    """Two runs appending to one store lost rows and repeated cases; now the second refuses
+    at once, naming the first, and the first ends with every case once."""
+    from evaluation.cli import main as cli
+
+    out = tmp_path / "o"
+    first = subprocess.Popen(
+        [sys.executable, "-c", _SLOW_RUN.format(out=str(out), n=30, delay=0.2)],
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    _wait_for_rows(out, 1)
+    assert cli(["evaluate", "--planner", "guide-only", "--sample", "smoke", "--out", str(out), "--quiet"]) == 2
+    assert first.wait(timeout=120) == 0, first.stderr.read()
+    rows = read_results([out])
+    assert len(rows) == 30 and rows["case_id"].is_unique and set(rows["planner"]) == {"slow"}
