@@ -35,6 +35,8 @@ def chunk(items: list, spec: str | None) -> list:
     if not 1 <= k <= n:
         raise ValueError(f"--chunk: K must be in 1..N, got {spec!r}")
     lo, hi = (len(items) * (k - 1)) // n, (len(items) * k) // n
+    if lo == hi:
+        raise ValueError(f"--chunk {spec}: holds no case ({len(items)} case(s) in {n} chunks); use fewer chunks")
     return items[lo:hi]
 
 

@@ -12,7 +12,7 @@ from evaluation.schema import EXPORT_COLUMNS
 from evaluation.store import export_table, read_results
 
 
-@pytest.mark.parametrize(("n_items", "n"), [(10, 3), (70_434, 16), (5, 5), (3, 7)])
+@pytest.mark.parametrize(("n_items", "n"), [(10, 3), (70_434, 16), (5, 5), (7, 7)])
 def test_chunks_partition_the_cases_in_order(n_items, n):
     items = list(range(n_items))
     parts = [chunk(items, f"{k}/{n}") for k in range(1, n + 1)]
@@ -24,6 +24,19 @@ def test_chunks_partition_the_cases_in_order(n_items, n):
 def test_a_bad_chunk_is_rejected_naming_the_option(spec):
     with pytest.raises(ValueError, match="--chunk"):
         chunk([1, 2, 3], spec)
+
+
+def test_a_chunk_that_holds_no_case_is_refused_before_a_folder_is_made(tmp_path, capsys):
+    """3 cases in 4 chunks: one chunk is empty. It said "results folder is empty" and left
+    an empty folder behind."""
+    from evaluation.cli import main as cli
+
+    with pytest.raises(ValueError, match=r"--chunk 1/4: holds no case \(3 case\(s\) in 4 chunks\)"):
+        chunk([1, 2, 3], "1/4")
+    layouts = [f"configs/layouts/tpcap/{n}.csv" for n in ("per03", "par02", "par03")]
+    out = tmp_path / "out"
+    assert cli(["evaluate", "--planner", "guide-only", "--layouts", *layouts, "--chunk", "1/4", "--out", str(out)]) == 2
+    assert "--chunk 1/4: holds no case" in capsys.readouterr().err and not out.exists()
 
 
 def test_the_export_keeps_the_report_columns_rounded_and_reads_back(tmp_path):
