@@ -36,11 +36,12 @@ def _row(i: int, planner: str = "quick") -> dict:
 def test_ctrl_c_with_several_workers_stops_cleanly_and_says_how_to_resume(tmp_path):
     """SIGINT to the whole process group mid-run: one line, exit 130, stored rows kept."""
     out = tmp_path / "o"
-    proc = subprocess.Popen(
-        [sys.executable, "-c", _SLOW_RUN.format(out=str(out), n=40, delay=0.2)],
+    proc = _start_slow_run(
+        out,
+        40,
+        0.2,
         stderr=subprocess.PIPE,
         text=True,
-        start_new_session=True,
         # A shell's background job inherits SIGINT ignored (pytest run with `&`), and so would
         # the child: give it the default disposition, as a terminal's foreground job has.
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
@@ -60,12 +61,7 @@ def test_sigterm_to_the_run_alone_stops_its_workers_and_keeps_what_is_stored(tmp
     Ctrl-C, with exit 143, and its workers do not run on orphaned (they did, each until at
     least the case in hand was done: 1.4 s after the run with cases of 1 s)."""
     out = tmp_path / "o"
-    proc = subprocess.Popen(
-        [sys.executable, "-c", _SLOW_RUN.format(out=str(out), n=40, delay=3.0)],
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,  # its own process group: the workers' too
-    )
+    proc = _start_slow_run(out, 40, 3.0, stderr=subprocess.PIPE, text=True)
     _wait_for_rows(out, 2)
     os.kill(proc.pid, signal.SIGTERM)
     err = proc.communicate(timeout=60)[1].strip()
@@ -105,6 +101,12 @@ _SLOW_RUN = textwrap.dedent(
                    "--quiet"] + (["--types", "reverse"] if {n} <= 30 else [])))
     """
 )
+
+
+def _start_slow_run(out: Path, n: int, delay: float, **popen) -> subprocess.Popen:
+    """``_SLOW_RUN`` into ``out`` in a process group of its own (its workers' too)."""
+    script = _SLOW_RUN.format(out=str(out), n=n, delay=delay)
+    return subprocess.Popen([sys.executable, "-c", script], start_new_session=True, **popen)
 
 
 def _wait_for_rows(out: Path, n: int, timeout: float = 60.0) -> None:
@@ -260,11 +262,7 @@ def test_sigkill_to_the_run_alone_takes_its_workers_with_it(tmp_path):
     end of the case in hand; they now die with their parent. Cases take 10 s, so a worker
     left running would still run 3 s after the kill."""
     out = tmp_path / "o"
-    proc = subprocess.Popen(
-        [sys.executable, "-c", _SLOW_RUN.format(out=str(out), n=40, delay=10.0)],
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,  # its own process group: the workers' too
-    )
+    proc = _start_slow_run(out, 40, 10.0, stderr=subprocess.DEVNULL)
     _wait_for_rows(out, 1, timeout=120)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait(timeout=10)
@@ -293,12 +291,7 @@ def test_two_runs_on_one_folder_the_second_is_refused_and_the_first_loses_nothin
     from evaluation.cli import main as cli
 
     out = tmp_path / "o"
-    first = subprocess.Popen(
-        [sys.executable, "-c", _SLOW_RUN.format(out=str(out), n=30, delay=0.2)],
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
+    first = _start_slow_run(out, 30, 0.2, stderr=subprocess.PIPE, text=True)
     _wait_for_rows(out, 1)
     assert cli(["evaluate", "--planner", "guide-only", "--sample", "smoke", "--out", str(out), "--quiet"]) == 2
     assert first.wait(timeout=120) == 0, first.stderr.read()
