@@ -156,8 +156,6 @@ def cmd_main(args: argparse.Namespace) -> int:
 
     scenarios = _cases(args)
     out = Path(args.out)
-    if args.export:
-        _writable_folder(Path(args.export), "--export")  # before any case runs, not after all of them
     planners = list(MAIN) if args.planners is None else args.planners
     for p in planners:
         evaluate(p, scenarios, out / p, workers=args.workers, progress=not args.quiet, mixed_code=args.mixed_code)

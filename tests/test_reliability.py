@@ -517,3 +517,11 @@ def test_a_layout_run_where_every_case_errors_ends_with_its_report(tmp_path, mon
     assert "broken: 1 layouts; report in" in capsys.readouterr().out
     assert "| per03 | broken |" in (out / "layouts.md").read_text()
     assert read_results([out])["error"].str.contains("broken on purpose").all()
+
+
+def test_the_main_job_runs_and_writes_its_report(tmp_path, quick, capsys):
+    """The README's first command, on a stub planner (a check written into it once read an
+    option the main job does not have)."""
+    out = tmp_path / "main"
+    assert cli(["main", "--planners", "quick", "--types", "reverse", "--out", str(out), "--quiet"]) == 0
+    assert (out / "report" / "report.md").exists() and len(read_results([out / "quick"])) == 30
