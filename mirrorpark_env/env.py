@@ -180,7 +180,7 @@ class MirrorParkEnv(gym.Env):
             sc = self._scenario_from(options.get("scenario"))
             return grid_layout(sc, self.params, self.cfg.scene_margin)
         if isinstance(spec, Layout):
-            spec.check(self.params)  # a file's layouts are checked at load; one built in code, here
+            spec.check_placement()  # a file's layouts are checked at load; one built in code here (reset builds it)
             return spec
         if isinstance(spec, (str, Path)):
             from .layout_io import load_layout

@@ -226,10 +226,15 @@ class Layout:
         return g
 
     def check(self, vehicle: VehicleParams | None = None) -> ScenarioGeometry:
-        """The geometry for ``vehicle`` (``build``), after refusing a scene no car can start in:
-        coordinates farther than ``MAX_EXTENT`` from the target, a start or target whose rear
-        axle lies outside the scene's bounds or its drivable boundary, or a car overlapping
-        an obstacle there. Raises ``ValueError`` naming the problem."""
+        """The geometry for ``vehicle`` (``build``, which refuses a car overlapping an obstacle
+        at the start or target), after ``check_placement``."""
+        self.check_placement()
+        return self.build(vehicle)
+
+    def check_placement(self) -> None:
+        """Refuse a scene no car can start in: coordinates farther than ``MAX_EXTENT`` from the
+        target, or a start or target whose rear axle lies outside the scene's bounds or its
+        drivable boundary. Raises ``ValueError`` naming the problem."""
         pts = [np.asarray([self.start[:2], self.target[:2]]), *self.obstacles]
         if self.boundary is not None:
             pts.append(self.boundary)
@@ -246,7 +251,6 @@ class Layout:
                 )
             if self.boundary is not None and not _covers(self.boundary, (x, y)):
                 raise ValueError(f"{what}: the rear axle at ({x:g}, {y:g}) lies outside the drivable boundary")
-        return self.build(vehicle)
 
     def recentred(self, beyond: float = 1000.0) -> Layout:
         """This layout moved so that the target lies at the origin, if anything in it lies
