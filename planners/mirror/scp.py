@@ -26,6 +26,13 @@ from .mirror_line import MirrorLine, SwitchBand, band_margin, switch_band
 from .plans import Candidate, Plan
 from .solvers import BranchAndBound
 
+EFFORT = ("iterations", "qp_solves", "nodes")  # a solve's work; a call sums its solves'
+
+
+def no_effort() -> dict[str, int]:
+    """Effort tallies, all zero (``EFFORT``)."""
+    return dict.fromkeys(EFFORT, 0)
+
 
 @dataclass(frozen=True, eq=False)
 class Reference:
@@ -73,7 +80,7 @@ class SCP:
         c = linear_term(cfg, cand.switch, goal, theta_t, terminal)
         theta_set: dict[tuple[int, int], None] = {}  # (step, obstacle) pairs with obstacle rows
         clear_plans: list[Plan] = []  # clear on the planning model; verified on the truth model at the end
-        st = {"iterations": 0, "qp_solves": 0, "nodes": 0, "status": "failed"}
+        st = {**no_effort(), "status": "failed"}
         mirror = cand.direction == core.shape_seeds.first_direction and not band
         rounds = self.rounds(core, xi0, cand, theta_t, goal)
         first = rounds.first(seed, line)

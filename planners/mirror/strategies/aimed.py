@@ -32,6 +32,7 @@ from ..cost import plan_price
 from ..cost_to_go import CostToGo, cost_to_go
 from ..guide import Guide
 from ..plans import Candidate, Plan
+from ..scp import no_effort
 from ..seeds import TrackedSeed
 from ..solvers import BranchAndBound
 from .base import Strategy
@@ -212,7 +213,7 @@ class _Call:
         self.xi0, self.start, self.line, self.prev = xi0, start, line, prev
         self.target = np.array(self.pl.g.target, float)
         self.reach = self.cfg.reach_speed * self.cc.dt  # [m] per step of horizon left
-        self.totals = {"iterations": 0, "qp_solves": 0, "nodes": 0}
+        self.totals = no_effort()
         self.tried: list = []  # (candidate, J or None, status, goal) per solve
         self.partial: Plan | None = None
         self.net = False

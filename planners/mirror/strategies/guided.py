@@ -9,19 +9,17 @@ mirror line the car switches. The default planner until 2026-12-02, kept for the
 from __future__ import annotations
 
 import math
-import time
-from dataclasses import replace
 
 import numpy as np
 
 from mirrorpark_env.vehicle import VehicleState
 
-from ...base import PlanStats
 from ..checks import Start
 from ..config import GuidedConfig
 from ..core import PlannerCore
 from ..guide import Guide, GuideSearch, prepared_search
 from ..plans import Plan
+from ..scp import EFFORT, no_effort
 from ..seeds import TrackedSeed
 from .base import Strategy
 
@@ -52,16 +50,11 @@ class Guided(Strategy):
             if plan is None and st.get("partial") is not None:  # go along the guide as far as is safe
                 plan, status = st["partial"], "partial"
             detail["safety_net"] = st.get("safety_net", False)
-        if plan is None:
+        if plan is None:  # a failed call records no effort (as the guided planner always has)
             status = "infeasible" if guide is not None else "no_guide"
-            self.core.last_stats = PlanStats(time.perf_counter() - t0, status, detail=detail)
-            return None
+            return self.core.finish(t0, status, no_effort(), math.nan, detail, None)
         detail = {"candidates": tried, "guided": True, "goal": tuple(round(float(v), 3) for v in goal), **detail}
-        stats = PlanStats(
-            time.perf_counter() - t0, status, st["iterations"], st["qp_solves"], st["nodes"], plan.cost, detail
-        )
-        self.core.last_stats = stats
-        return replace(plan, stats=stats)
+        return self.core.finish(t0, status, st, plan.cost, detail, plan)
 
     def _solve(self, xi0: np.ndarray, guide: Guide, start: Start):
         """The guided candidate, and for a plan with a switch the same manoeuvre seeded at
@@ -77,12 +70,12 @@ class Guided(Strategy):
                     variants.append((c2, s2))
         natural = cand.direction == core.shape_seeds.first_direction  # the order of the paper's mirror line
         best = best_st = None
-        tried, totals, net = [], {"iterations": 0, "qp_solves": 0, "nodes": 0}, False
+        tried, totals, net = [], no_effort(), False
         for c, seed in variants:
             plan, st = core.scp.solve(
                 xi0, c, goal, start, core.line, seed, iterations=self.cfg.iterations, band=natural
             )
-            for k in ("iterations", "qp_solves", "nodes"):
+            for k in EFFORT:
                 totals[k] += st[k]
             net = net or st.get("safety_net", False)
             tried.append((c, None if plan is None else round(plan.cost, 3), st["status"]))

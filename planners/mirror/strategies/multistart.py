@@ -21,6 +21,7 @@ from ..checks import Start
 from ..config import MultistartConfig
 from ..core import PlannerCore
 from ..plans import Candidate, Plan
+from ..scp import no_effort
 from .base import Strategy
 
 
@@ -51,7 +52,7 @@ class MultiStart(Strategy):
         )
         stay = core.checks.merit(np.repeat(xi0[None], core.cfg.model_substeps * core.N + 1, axis=0), goal, theta_t)
         best = partial = None
-        totals = {"iterations": 0, "qp_solves": 0, "nodes": 0}
+        totals = no_effort()
         net = False
         tried = []
         for n, (cand, seed) in enumerate(seeds):
