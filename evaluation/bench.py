@@ -37,15 +37,32 @@ def env_steps_per_second(steps: int = 5000, repeats: int = 5) -> dict:
     return {"median": statistics.median(rates), "all": rates, "steps": steps}
 
 
+def stage_shares(stats: list) -> dict[str, float] | None:
+    """Each stage's share of the calls' summed wall time (``planners/mirror/stages.py``),
+    the rest as "other"; None for planners that do not time their stages."""
+    staged = [s for s in stats if "stages_ms" in s.detail]
+    if not staged:
+        return None
+    total = sum(1e3 * s.wall_time_s for s in staged)
+    shares = {k: 0.0 for k in staged[0].detail["stages_ms"]}
+    for s in staged:
+        for k, v in s.detail["stages_ms"].items():
+            shares[k] += v
+    shares = {k: v / total for k, v in shares.items()}
+    shares["other"] = max(0.0, 1.0 - sum(shares.values()))
+    return shares
+
+
 def planning_times(planners: list[str], case_ids: list[str]) -> dict:
     """Every planning call of each planner over the same closed-loop episodes."""
     from .runner import run_case
 
     out = {}
     for p in planners:
-        times, qps, wall, setup, ok = [], [], [], [], 0
+        times, qps, wall, setup, ok, errors, stats = [], [], [], [], 0, 0, []
         for cid in case_ids:
-            row = run_case(p, Scenario.from_case_id(cid))  # grid ids: exact
+            row = run_case(p, Scenario.from_case_id(cid), keep_stats=stats)  # grid ids: exact
+            errors += bool(row.get("error"))
             times += row.get("plan_times_ms") or []
             qps += list(row.get("plan_qp_solves") or [])
             wall.append(row["episode_wall_s"])
@@ -55,10 +72,13 @@ def planning_times(planners: list[str], case_ids: list[str]) -> dict:
         out[p] = {
             "cases": len(case_ids),
             "successes": ok,
+            "errors": errors,
             "calls": int(len(t)),
             "plan_ms_median": float(np.median(t)) if len(t) else None,
             "plan_ms_p95": float(np.percentile(t, 95)) if len(t) else None,
+            "plan_ms_p99": float(np.percentile(t, 99)) if len(t) else None,
             "plan_ms_mean": float(t.mean()) if len(t) else None,
+            "stage_shares": stage_shares(stats),
             # The work per call, the same on any machine (QP solves; 0 for search planners).
             "qp_per_call_median": float(np.median(qps)) if qps else None,
             "qp_per_call_p95": float(np.percentile(qps, 95)) if qps else None,

@@ -170,22 +170,26 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from .cases import from_sample
     from .registry import MAIN
 
-    smoke = [sc.case_id for sc in from_sample("smoke")]
-    n = min(args.cases, len(smoke))
-    # The middle of each of n equal blocks: the smoke sample is ordered by type and slot
-    # size, so its first cases are the tightest slots (mostly hopeless).
-    cases = [smoke[(2 * i + 1) * len(smoke) // (2 * n)] for i in range(n)]
+    sample = [sc.case_id for sc in from_sample(args.sample)]
+    n = min(args.cases, len(sample))
+    # The middle of each of n equal blocks: the samples are ordered by type and slot size,
+    # so their first cases are the tightest slots (mostly hopeless).
+    cases = [sample[(2 * i + 1) * len(sample) // (2 * n)] for i in range(n)]
     res = run(args.planners or list(MAIN), cases, env_steps=args.env_steps)
     if args.json:
         print(json.dumps(res))
     else:
         print(f"env: {res['env_steps_per_s']['median']:.0f} steps/s (median)")
         for p, r in res["planners"].items():
+            ms = "/".join(f"{r[k]:.1f}" if r[k] is not None else "-" for k in ("plan_ms_median", "plan_ms_mean"))
+            tail = "/".join(f"{r[k]:.1f}" if r[k] is not None else "-" for k in ("plan_ms_p95", "plan_ms_p99"))
             print(
-                f"{p}: plan ms median {r['plan_ms_median']}, p95 {r['plan_ms_p95']} over {r['calls']} calls, "
-                f"QP solves per call median {r['qp_per_call_median']}, p95 {r['qp_per_call_p95']}, "
-                f"{r['successes']}/{r['cases']} parked"
+                f"{p}: plan ms median/mean {ms}, p95/p99 {tail} over {r['calls']} calls; "
+                f"QP solves per call median {r['qp_per_call_median']}, p95 {r['qp_per_call_p95']}; "
+                f"{r['successes']}/{r['cases']} parked" + (f", {r['errors']} errors" if r["errors"] else "")
             )
+            if r["stage_shares"]:
+                print("  time per stage: " + ", ".join(f"{k} {v:.0%}" for k, v in r["stage_shares"].items()))
         for k, v in res["ratios"].items():
             print(f"{k}: {v:.2f}")
     return 0
@@ -312,8 +316,9 @@ def build_parser() -> argparse.ArgumentParser:
     m.set_defaults(func=cmd_main)
 
     b = sub.add_parser("bench", help="benchmark env stepping and every planner's planning time in one run")
-    b.add_argument("--planners", nargs="+", default=None)
-    b.add_argument("--cases", type=int, default=9, help="smoke cases to plan on (default 9)")
+    b.add_argument("--planners", "--planner", nargs="+", default=None, help="planner names (default: the main ones)")
+    b.add_argument("--sample", choices=("smoke", "standard"), default="smoke", help="the sample to take cases from")
+    b.add_argument("--cases", type=_positive_int, default=9, help="cases spread over the sample (default 9)")
     b.add_argument("--env-steps", type=int, default=5000)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench)

@@ -109,11 +109,12 @@ def unique(scenarios: Iterable[Scenario]) -> tuple[list[Scenario], int]:
     return out, n_in - len(out)
 
 
-def run_case(planner: str, sc: Scenario | Layout) -> dict[str, Any]:
+def run_case(planner: str, sc: Scenario | Layout, keep_stats: list | None = None) -> dict[str, Any]:
     """One episode of ``planner`` on a grid case or a layout; never raises (errors become rows).
 
     A layout's row also holds the driven path (``path_x``, ``path_y``: the rear axle at
-    every step, in the layout's frame) for its figure."""
+    every step, in the layout's frame) for its figure. ``keep_stats``: a list that the
+    policy's ``PlanStats`` of every call are appended to (the benchmark's breakdown)."""
     from planners.base import run_episode
 
     from .registry import make_policy
@@ -130,6 +131,8 @@ def run_case(planner: str, sc: Scenario | Layout) -> dict[str, Any]:
         if trace is not None:
             row["path_x"] = [round(i["vehicle_state"].x, 4) for i in trace]
             row["path_y"] = [round(i["vehicle_state"].y, 4) for i in trace]
+        if keep_stats is not None:
+            keep_stats.extend(policy.stats)
         times = [1e3 * s.wall_time_s for s in policy.stats]
         row.update(
             success=bool(info["is_success"]),

@@ -1,7 +1,7 @@
 """Run a mirror planner preset with some settings changed over a sample, one process, and export its rows.
 
     python scripts/mirror_variant.py --set retry_nodes=30 [--set KEY=JSON ...] [--preset mirror] \
-        [--name mirror-variant] [--sample smoke] [--out results/variants]
+        [--name mirror-variant] [--sample smoke] [--every 1] [--start 0] [--out results/variants]
     mirrorpark diff --before BASELINE.parquet --after results/variants/mirror-variant.parquet
 
 Each ``--set`` overrides one field of the preset's core or strategy config
@@ -22,7 +22,7 @@ from pydantic import ValidationError
 
 from evaluation import registry
 from evaluation.cases import from_sample
-from evaluation.runner import run_case
+from evaluation.runner import run_case, slot_of
 from evaluation.store import export_table
 from planners.mirror import config
 
@@ -36,6 +36,8 @@ def main() -> None:
     ap.add_argument("--preset", default="mirror", choices=sorted(PRESETS))
     ap.add_argument("--name", default="mirror-variant")
     ap.add_argument("--sample", default="smoke", choices=("smoke", "standard"))
+    ap.add_argument("--every", type=int, default=1, help="every n-th case of the sample (sorted by slot)")
+    ap.add_argument("--start", type=int, default=0, help="... from this one")
     ap.add_argument("--out", default="results/variants")
     a = ap.parse_args()
     over = {}
@@ -52,7 +54,10 @@ def main() -> None:
         raise SystemExit(f"--set: {err}") from None
 
     registry.PLANNERS[a.name] = lambda: registry.mirror_policy(cfg)
-    df = pd.DataFrame([run_case(a.name, sc) for sc in from_sample(a.sample)])
+    cases = from_sample(a.sample)
+    if a.every > 1 or a.start:
+        cases = sorted(cases, key=slot_of)[a.start :: a.every]
+    df = pd.DataFrame([run_case(a.name, sc) for sc in cases])
     path = export_table(df, a.out, a.name)
     solves = int(sum(sum(q) for q in df["plan_qp_solves"] if q is not None))
     calls = int(df["planning_calls"].sum())

@@ -499,11 +499,11 @@ def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_me
             keep.append(k)
         return keep
 
-    def spy(self, qp, disj, active, preferred=None):
+    def spy(self, qp, disj, active, preferred=None, max_solves=None):
         if not captured and len(cut_down(disj)) >= 5:
             copy = dataclasses.replace(qp, h_l=qp.h_l.copy(), c=qp.c.copy())
             captured.append((self.qp_backend, copy, list(disj), active.copy(), list(preferred or [])))
-        return solve(self, qp, disj, active, preferred)
+        return solve(self, qp, disj, active, preferred, max_solves)
 
     monkeypatch.setattr(solvers.BranchAndBound, "solve", spy)
     run_episode(gym.make("MirrorPark-v0"), MirrorPolicy(), "parallel_rw4.00_sl5.02_sw2.50_th+40_y1.10")

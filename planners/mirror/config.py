@@ -54,6 +54,9 @@ class CoreConfig(StrictModel):
     band_tolerance: float = Field(0.008, ge=0, le=0.1)  # [m] a plan's switch may lie this far outside its band
     mirror_margin: float = Field(1.1, ge=1, le=3)  # reverse / angle: l_mi >= margin * r_min (1 - cos psi)
     node_limit: int = Field(100, ge=1, le=100_000)  # branch-and-bound nodes per MIQP (a work budget)
+    # QP solves per planning call (a work budget, the same on every machine): once spent, no
+    # QP is solved and the call returns the best plan it has (None: no limit).
+    call_qp_budget: int | None = Field(None, ge=1, le=1_000_000)
     kkt_solver: Literal["sparse_ldlt", "sparse_multistage", "auto"] = "auto"  # piqp's (solvers.PiqpQP)
     qp_tolerance: float = Field(1e-4, gt=0, lt=1)  # piqp's absolute residual and duality-gap tolerance
     time_limit_s: float = Field(5.0, gt=0)  # branch and bound's wall-clock safety net per MIQP (recorded)
@@ -85,6 +88,7 @@ class AimedConfig(StrictModel):
     retry_nodes: int = Field(100, ge=0, le=1_000_000)  # nodes in all for re-solving on the full budget
     reach_speed: float = Field(1.2, gt=0, le=3)  # [m/s] a goal lies at most this far down V per second left
     finish_radius: float = Field(8.0, ge=0)  # [m] within this of the target, also plan toward it
+    finish_candidates: int = Field(2, ge=0, le=10)  # ... with this many shape seeds, best by their merit
 
 
 class ColdConfig(AimedConfig):

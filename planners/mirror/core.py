@@ -31,6 +31,25 @@ from .qp import MirrorQP
 from .scp import SCP
 from .seeds import ShapeSeeds
 from .solvers import BranchAndBound, PiqpQP
+from .stages import StageClock
+
+
+class CallBudget:
+    """QP solves left to the current call (``CoreConfig.call_qp_budget``; None: no limit)."""
+
+    def __init__(self, limit: int | None):
+        self.limit = limit
+        self.left: float = math.inf
+
+    def reset(self) -> None:
+        self.left = math.inf if self.limit is None else self.limit
+
+    def spend(self, solves: int) -> None:
+        self.left -= solves
+
+    @property
+    def spent(self) -> bool:
+        return self.left <= 0
 
 
 class PlannerCore:
@@ -50,6 +69,8 @@ class PlannerCore:
         self.shape_seeds = ShapeSeeds(geometry, cfg, self.coarse)
         self.scp = SCP(self, rounds)
         self.last_stats: PlanStats | None = None  # the latest call's, a failed one's too
+        self.clock = StageClock()  # the current call's time per stage (``stages.py``)
+        self.budget = CallBudget(cfg.call_qp_budget)  # the current call's QP solves left
 
     def line_from(self, theta: float) -> MirrorLine:
         """The mirror line for a plan from heading ``theta``: Theorem 1's (parallel), else
@@ -69,7 +90,9 @@ class PlannerCore:
         return self.rollout_half(xi0, u_planned, cand)[:: self.cfg.model_substeps]
 
     def finish(self, t0: float, status: str, totals: dict, cost: float, detail: dict, best: Plan | None) -> Plan | None:
-        """Record a call's statistics (``last_stats``) and return its plan carrying them."""
+        """Record a call's statistics (``last_stats``, with the time per stage in
+        ``detail["stages_ms"]``) and return its plan carrying them."""
+        detail = {**detail, "stages_ms": self.clock.ms(), "budget_spent": self.budget.spent}
         stats = PlanStats(
             time.perf_counter() - t0, status, totals["iterations"], totals["qp_solves"], totals["nodes"], cost, detail
         )

@@ -79,6 +79,8 @@ class MirrorPlanner:
         one included, in ``last_stats``. ``candidates``: solve these (the multi-start
         strategies only) instead of the strategy's own."""
         t0 = time.perf_counter()
+        self.core.clock.reset()
+        self.core.budget.reset()
         xi0 = state.as_array()
         start = self.core.checks.start(xi0)
         if candidates is None:

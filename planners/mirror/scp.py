@@ -82,50 +82,57 @@ class SCP:
         clear_plans: list[Plan] = []  # clear on the planning model; verified on the truth model at the end
         st = {**no_effort(), "status": "failed"}
         mirror = cand.direction == core.shape_seeds.first_direction and not band
+        clock = core.clock
         rounds = self.rounds(core, xi0, cand, theta_t, goal)
-        first = rounds.first(seed, line)
+        with clock("seeds"):
+            first = rounds.first(seed, line)
         ref = None
         if first is not None:
-            ref, _, _ = self._score(*first, cand, goal, theta_t, start, line, band, clear_plans)
+            with clock("checks"):
+                ref, _, _ = self._score(*first, cand, goal, theta_t, start, line, band, clear_plans)
         cap = cfg.max_iterations if iterations is None else iterations
         for it in range(cfg.max_iterations):
             if it >= cap and (clear_plans or not band):
                 break  # a switch outside its band: more rounds (to max_iterations) to move it in
             st["iterations"] += 1
-            lin = rounds.model(ref, theta_set, start)
-            ref_real = ref.real if ref is not None else None
-            rows = self._band(cand, goal, ref_real) if band else None
-            qp, disj, active, preferred = self.qp.build(
-                xi0,
-                cand,
-                c,
-                lin,
-                ref_real,
-                theta_set,
-                line,
-                rounds.trust,
-                mirror=mirror,
-                trust_scale=rounds.trust_scale,
-                band=rows,
-                terminal=terminal,
-            )
-            x = self._solve(qp, disj, active, preferred, st, miqp or core.miqp)
+            with clock("build"):
+                lin = rounds.model(ref, theta_set, start)
+                ref_real = ref.real if ref is not None else None
+                rows = self._band(cand, goal, ref_real) if band else None
+                qp, disj, active, preferred = self.qp.build(
+                    xi0,
+                    cand,
+                    c,
+                    lin,
+                    ref_real,
+                    theta_set,
+                    line,
+                    rounds.trust,
+                    mirror=mirror,
+                    trust_scale=rounds.trust_scale,
+                    band=rows,
+                    terminal=terminal,
+                )
+            with clock("solve"):
+                x = self._solve(qp, disj, active, preferred, st, miqp or core.miqp)
             if x is None:
                 st["status"] = "infeasible"
                 break
             u_planned = x[self.qp.u_index]
-            real = core.rollout_half(xi0, u_planned, cand)
-            new, hits, usable = self._score(real, u_planned, cand, goal, theta_t, start, line, band, clear_plans)
+            with clock("checks"):
+                real = core.rollout_half(xi0, u_planned, cand)
+                new, hits, usable = self._score(real, u_planned, cand, goal, theta_t, start, line, band, clear_plans)
             for i, k in hits:  # Algorithm I on the new solution too, accepted or not
                 theta_set[(i, k)] = None
             ref, stop = rounds.after(ref, new, hits, usable, st)
             if stop:
                 break
-        best = self._confirmed(xi0, clear_plans, start)
-        if best is not None:
-            st["status"] = "ok"
-        elif ref is not None:  # no clear plan: the best iterate's safe start, if any
-            st["partial"] = self._safe_stop(xi0, cand, ref, goal, theta_t, start, line)
+        with clock("checks"):
+            best = self._confirmed(xi0, clear_plans, start)
+            if best is not None:
+                st["status"] = "ok"
+            elif ref is not None:  # no clear plan: the best iterate's safe start, if any
+                st["partial"] = self._safe_stop(xi0, cand, ref, goal, theta_t, start, line)
         return best, st
 
     def _band_args(self, cand: Candidate, goal: np.ndarray) -> tuple[int, float, float | None]:
@@ -174,16 +181,24 @@ class SCP:
         return self.checks.safe_prefix(xi0, cand, ref.u, hits, goal, theta_t, start, line) if hits else None
 
     def _solve(self, qp, disj, active, preferred, st: dict, miqp: BranchAndBound) -> np.ndarray | None:
-        """The QP, or the MIQP (by ``miqp``) where there are disjunctions; effort counted into ``st``."""
+        """The QP, or the MIQP (by ``miqp``) where there are disjunctions; effort counted into
+        ``st`` and taken from the call's budget (None once that is spent)."""
+        budget = self.core.budget
+        if budget.left <= 0:
+            st["budget_spent"] = True
+            return None
         if disj:
-            res = miqp.solve(qp, disj, active, preferred)
+            res = miqp.solve(qp, disj, active, preferred, max_solves=budget.left)
             st["qp_solves"] += res.qp_solves
             st["nodes"] += res.nodes
+            budget.spend(res.qp_solves)
             st["safety_net"] = st.get("safety_net", False) or res.status == "time_limit"
             if res.status == "node_limit":
                 st["cut_short"] = True  # out of nodes: its optimum not proved, perhaps not found
+            st["budget_spent"] = st.get("budget_spent", False) or res.status == "budget"
             return res.x
         st["qp_solves"] += 1
+        budget.spend(1)
         return self.core.qp_backend.solve(qp).x
 
     def _confirmed(self, xi0: np.ndarray, clear_plans: list[Plan], start: Start) -> Plan | None:

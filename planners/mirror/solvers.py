@@ -80,7 +80,7 @@ class Disjunction:
 class MIQPResult:
     x: np.ndarray | None
     obj: float
-    status: str  # "solved", "infeasible", "node_limit", "time_limit"
+    status: str  # "solved", "infeasible", "node_limit", "time_limit", "budget"
     nodes: int
     qp_solves: int
     assignment: tuple[int, ...]  # chosen row per disjunction (-1: satisfied unforced)
@@ -240,7 +240,12 @@ class BranchAndBound:
         self.tol = tol
 
     def solve(
-        self, qp: QP, disjunctions: list[Disjunction], active_bounds: np.ndarray, preferred: list[int] | None = None
+        self,
+        qp: QP,
+        disjunctions: list[Disjunction],
+        active_bounds: np.ndarray,
+        preferred: list[int] | None = None,
+        max_solves: int | None = None,
     ) -> MIQPResult:
         """``active_bounds[r]``: row r's lower bound when active; ``qp.h_l`` holds ``INACTIVE`` there.
 
@@ -248,8 +253,10 @@ class BranchAndBound:
         does not already satisfy every disjunction, that full assignment is solved next, and
         a feasible result is the first incumbent. (A root that satisfies them all is the
         optimum: solving the seed first would only cost a QP, measured in a third of the
-        planner's MIQPs.)
+        planner's MIQPs.) ``max_solves``: at most this many QP solves (>= 1; status
+        "budget" where it stopped the search), the caller's work budget.
         """
+        cap = math.inf if max_solves is None else max_solves
         t0 = time.perf_counter()
         base_l = qp.h_l.copy()
         best_x, best_obj, best_assign = None, math.inf, ()
@@ -286,7 +293,7 @@ class BranchAndBound:
         if root_split[0] < 0:
             qp.h_l = base_l
             return MIQPResult(root.x, root.obj, "solved", nodes, solves, root_assign, time.perf_counter() - t0)
-        if preferred is not None:
+        if preferred is not None and solves < cap:
             res = relax(tuple(preferred))
             solves += 1
             if res.x is not None:
@@ -309,11 +316,9 @@ class BranchAndBound:
 
         visit(root_assign, root, root_split)
         while stack:
-            if nodes >= self.node_limit:
-                status = "node_limit"
-                break
-            if time.perf_counter() - t0 > self.time_limit_s:
-                status = "time_limit"
+            stop = self._out_of(nodes, solves, cap, t0)
+            if stop:
+                status = stop
                 break
             assign = stack.pop()
             nodes += 1
@@ -323,6 +328,16 @@ class BranchAndBound:
         if best_x is None and status == "solved":
             status = "infeasible"
         return MIQPResult(best_x, best_obj, status, nodes, solves, best_assign, time.perf_counter() - t0)
+
+    def _out_of(self, nodes: int, solves: int, cap: float, t0: float) -> str | None:
+        """What the search has run out of, if anything: nodes, the caller's solves, or time."""
+        if nodes >= self.node_limit:
+            return "node_limit"
+        if solves >= cap:
+            return "budget"
+        if time.perf_counter() - t0 > self.time_limit_s:
+            return "time_limit"
+        return None
 
 
 class Enumeration:

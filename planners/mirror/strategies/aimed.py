@@ -63,13 +63,14 @@ class AimedCandidates(Strategy):
         """V at ``pose`` (arrived in ``gear``; None: at rest), and near the target, where V's
         cells are too coarse, the pose error in metres of driving, at most ``finish_cap``
         above V (so that it ranks poses near the target and nowhere else)."""
-        c = self.V.cfg
-        v = self.V.lookahead(pose, gear)
-        tx, ty, tth = self.core.g.target
-        e = c.finish_position * math.hypot(pose[0] - tx, pose[1] - ty) + c.finish_heading * abs(
-            unwrap_near(tth, pose[2]) - pose[2]
-        )
-        return v + min(max(e - v, 0.0), c.finish_cap)
+        with self.core.clock("cost_to_go"):
+            c = self.V.cfg
+            v = self.V.lookahead(pose, gear)
+            tx, ty, tth = self.core.g.target
+            e = c.finish_position * math.hypot(pose[0] - tx, pose[1] - ty) + c.finish_heading * abs(
+                unwrap_near(tth, pose[2]) - pose[2]
+            )
+            return v + min(max(e - v, 0.0), c.finish_cap)
 
     def plan(self, state: VehicleState, xi0: np.ndarray, start: Start, t0: float) -> Plan | None:
         self.prepare()
@@ -77,14 +78,16 @@ class AimedCandidates(Strategy):
         line = pl.line_from(state.theta)
         prev = self.last_gear if abs(state.v) < 0.05 else (1 if state.v > 0 else -1)
         call = _Call(self, xi0, start, line, prev)
-        picked, fixed = self._warm_starts(state, xi0, line, call), set()  # fixed: aimed at the target
-        target = call.target
-        if math.hypot(xi0[0] - target[0], xi0[1] - target[1]) < cfg.finish_radius:
-            theta_t = unwrap_near(target[2], state.theta)
-            merit = lambda real: pl.checks.merit(real, target, theta_t)  # noqa: E731
-            for cs in pl.shape_seeds.ranked(xi0, pl.shape_seeds.candidates(state, line), line, merit)[:2]:
-                fixed.add(len(picked))
-                picked.append(cs)
+        with pl.clock("seeds"):
+            picked, fixed = self._warm_starts(state, xi0, line, call), set()  # fixed: aimed at the target
+            target = call.target
+            if math.hypot(xi0[0] - target[0], xi0[1] - target[1]) < cfg.finish_radius:
+                theta_t = unwrap_near(target[2], state.theta)
+                merit = lambda real: pl.checks.merit(real, target, theta_t)  # noqa: E731
+                ranked = pl.shape_seeds.ranked(xi0, pl.shape_seeds.candidates(state, line), line, merit)
+                for cs in ranked[: cfg.finish_candidates]:
+                    fixed.add(len(picked))
+                    picked.append(cs)
         # Scouting: every candidate solved once, branch and bound on a small budget; then
         # the leader alone is refined (its goal moved down V from its optimised plan, its SCP
         # continued where it had not converged, on the full budget). Where no candidate gives
@@ -96,6 +99,8 @@ class AimedCandidates(Strategy):
         for full in (False, True):
             cut_short = []
             for n in todo:
+                if pl.budget.spent:
+                    break  # the call's QP budget (``call_qp_budget``): the best plan so far stands
                 cand, seed = picked[n]
                 if not full:
                     j, plan, cut, conv = call.solve(cand, goals[n], seed, self.scout_miqp)
@@ -147,7 +152,8 @@ class AimedCandidates(Strategy):
         dirs = [1 if state.v > 0 else -1] if abs(state.v) > 0.1 else [1, -1]
         for d in dirs:
             for changes in (0, 1):
-                poses = self.V.policy_path(xi0[:3], d, changes, 1.5 * reach * pl.N)
+                with pl.clock("cost_to_go"):
+                    poses = self.V.policy_path(xi0[:3], d, changes, 1.5 * reach * pl.N)
                 if poses is not None:
                     c, seed, _ = self.tracked_seed.seed(xi0, Guide(Path.from_poses(poses), 0.0))
                     if all(c != q for q, _ in picked):
@@ -160,7 +166,8 @@ class AimedCandidates(Strategy):
         # 83.5 % parked against 83.2 %, 1.59 switches against 1.75 where it, the default
         # before it and hybrid A* all park (CHANGELOG.md, 2026-12-04).
         for changes in (0, 1):
-            poses = self.V.read_path(xi0[:3], changes, 1.5 * reach * pl.N)
+            with pl.clock("cost_to_go"):
+                poses = self.V.read_path(xi0[:3], changes, 1.5 * reach * pl.N)
             if poses is None:
                 continue
             c, seed, _ = self.tracked_seed.seed(xi0, Guide(Path.from_poses(poses), 0.0))
@@ -233,7 +240,8 @@ class _Call:
         50th standard case)."""
         N, k = self.pl.N, 0 if c.switch is None else c.switch
         pose = real[k * self.cc.model_substeps, :3] if len(real) > N + 1 else real[k, :3]
-        goal = self.vp.V.descend(pose, last_gear(c), self.reach * (N - k), move_on=True)
+        with self.pl.clock("cost_to_go"):
+            goal = self.vp.V.descend(pose, last_gear(c), self.reach * (N - k), move_on=True)
         return self.target.copy() if goal is None else goal
 
     def solve(self, cand: Candidate, goal: np.ndarray, seed: np.ndarray, miqp) -> tuple[float, Plan | None, bool, bool]:
@@ -265,11 +273,14 @@ class _Call:
         into a 1.92 m angle slot 6 cm to one side, and the car then shuffled 29 times)."""
         pl, cand, plan = self.pl, best.candidate, best
         for _ in range(self.cfg.updates - 1):
+            if pl.budget.spent:
+                break
             new = self.aim(plan.states, cand)
             if np.hypot(*(new[:2] - goal[:2])) < 0.05 and abs(wrap_angle(new[2] - goal[2])) < 0.02 and converged:
                 break
             goal = new
-            seed = np.concatenate([self.xi0[None], pl.coarse.rollout(self.xi0, plan.commands)[:, :6]])
+            with pl.clock("seeds"):
+                seed = np.concatenate([self.xi0[None], pl.coarse.rollout(self.xi0, plan.commands)[:, :6]])
             j, plan, _, converged = self.solve(cand, goal, seed, pl.miqp)
             if plan is None:
                 break
