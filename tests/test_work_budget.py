@@ -30,7 +30,7 @@ def _first_call(case_id: str, **changes):
 def test_a_call_never_solves_more_qps_than_its_budget_and_says_so(case_id):
     """Each type's first call, unbounded, then on budgets below what it spent: the call stops
     at its budget (to the solve), reports it, and still returns the best plan it had."""
-    _, free = _first_call(case_id)
+    _, free = _first_call(case_id, call_qp_budget=None)
     assert free.detail["budget_spent"] is False
     assert free.qp_solves > 4
     for budget in (1, 3, free.qp_solves // 2):

@@ -55,8 +55,9 @@ class CoreConfig(StrictModel):
     mirror_margin: float = Field(1.1, ge=1, le=3)  # reverse / angle: l_mi >= margin * r_min (1 - cos psi)
     node_limit: int = Field(100, ge=1, le=100_000)  # branch-and-bound nodes per MIQP (a work budget)
     # QP solves per planning call (a work budget, the same on every machine): once spent, no
-    # QP is solved and the call returns the best plan it has (None: no limit).
-    call_qp_budget: int | None = Field(None, ge=1, le=1_000_000)
+    # QP is solved and the call returns the best plan it has (None: no limit). At 120 the
+    # tail of ``mirror``'s calls is bounded by work (docs/mirror_planner.md, "Where the time goes").
+    call_qp_budget: int | None = Field(120, ge=1, le=1_000_000)
     kkt_solver: Literal["sparse_ldlt", "sparse_multistage", "auto"] = "auto"  # piqp's (solvers.PiqpQP)
     qp_tolerance: float = Field(1e-4, gt=0, lt=1)  # piqp's absolute residual and duality-gap tolerance
     time_limit_s: float = Field(5.0, gt=0)  # branch and bound's wall-clock safety net per MIQP (recorded)
@@ -84,11 +85,11 @@ class AimedConfig(StrictModel):
     candidates: int = Field(3, ge=1, le=20)  # switch candidates refined where the cost to go is blind
     updates: int = Field(2, ge=1, le=10)  # solves of the leading candidate, its goal moved down V each time
     iterations: int = Field(3, ge=1, le=100)  # SCP rounds per solve
-    scout_node_limit: int = Field(5, ge=1, le=100_000)  # branch-and-bound nodes per MIQP while scouting
+    scout_node_limit: int = Field(2, ge=1, le=100_000)  # branch-and-bound nodes per MIQP while scouting
     retry_nodes: int = Field(100, ge=0, le=1_000_000)  # nodes in all for re-solving on the full budget
     reach_speed: float = Field(1.2, gt=0, le=3)  # [m/s] a goal lies at most this far down V per second left
     finish_radius: float = Field(8.0, ge=0)  # [m] within this of the target, also plan toward it
-    finish_candidates: int = Field(2, ge=0, le=10)  # ... with this many shape seeds, best by their merit
+    finish_candidates: int = Field(1, ge=0, le=10)  # ... with this many shape seeds, best by their merit
 
 
 class ColdConfig(AimedConfig):
@@ -182,7 +183,14 @@ def cold_config(**changes) -> MirrorPlannerConfig:
 # The guided and multi-start planners predate the cost to go's settled ends: their plans may
 # end braking, their SCP stops within 6 cm and 0.02 rad, and one terminal weight serves every
 # slot (as Eq. 33 has it).
-_GUIDED_CORE = {"end_settled": False, "settle_position": 0.06, "settle_heading": 0.02, "lateral_window": 0.0}
+# No budget per call either: their calls are bounded by their candidates' node budgets alone.
+_GUIDED_CORE = {
+    "end_settled": False,
+    "settle_position": 0.06,
+    "settle_heading": 0.02,
+    "lateral_window": 0.0,
+    "call_qp_budget": None,
+}
 
 
 def guided_config(**changes) -> MirrorPlannerConfig:
