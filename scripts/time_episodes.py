@@ -6,7 +6,7 @@ given checkout: run two at once (one per core) to compare two versions paired.
 CHECKOUT is a source tree (this one, or a `git worktree add /tmp/old COMMIT`); its packages
 are imported ahead of the installed ones. Cases are the standard sample sorted by slot (so a
 slot's cost to go is built once, as in `evaluate`), every ``every``-th from ``start``. Prints
-one JSON line: wall time, plan time median / p95, calls.
+one JSON line: wall time, plan time median / mean / p95 / p99, calls.
 """
 
 from __future__ import annotations
@@ -42,7 +42,9 @@ def main() -> None:
                 "cases": len(cases),
                 "wall_s": round(time.perf_counter() - t0, 1),
                 "plan_median_ms": round(float(np.median(plan_ms)), 1),
+                "plan_mean_ms": round(float(np.mean(plan_ms)), 1),
                 "plan_p95_ms": round(float(np.percentile(plan_ms, 95)), 1),
+                "plan_p99_ms": round(float(np.percentile(plan_ms, 99)), 1),
                 "calls": len(plan_ms),
             }
         )
