@@ -55,14 +55,25 @@ def cases_from(sample: str, case_file: str | None, types: list[str] | None) -> t
     return unique(cases)
 
 
-def layouts_from(paths: list[str], types: list[str] | None) -> tuple[list, int]:
+def layouts_from(paths: list[str], types: list[str] | None, vehicle: str | None = None) -> tuple[list, int]:
     """The layouts in files and folders (those with a slot of ``types`` if given), repeated
-    names dropped, and how many were dropped."""
+    names dropped, and how many were dropped. ``vehicle``: every layout's car (a name or a
+    YAML file, ``vehicle.vehicle_named``) instead of its file's. Invalid files are refused
+    all together, each named with its problem."""
     from mirrorpark_env.layout_io import load_layouts
+    from mirrorpark_env.vehicle import vehicle_named
 
     from .runner import unique
 
-    layouts = [lay for p in paths for lay in load_layouts(p)]
+    car = vehicle_named(vehicle) if vehicle is not None else None
+    layouts, errors = [], []
+    for p in paths:
+        try:
+            layouts += load_layouts(p, car)
+        except ValueError as err:
+            errors.append(str(err))
+    if errors:
+        raise ValueError("; ".join(errors))
     if types:
         layouts = [lay for lay in layouts if lay.slot is not None and lay.slot.parking_type.value in types]
         if not layouts:

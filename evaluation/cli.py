@@ -50,9 +50,11 @@ def _cases(args: argparse.Namespace):
     from .cases import cases_from, chunk, layouts_from
 
     if getattr(args, "layouts", None):
-        items, repeats = layouts_from(args.layouts, args.types)
+        items, repeats = layouts_from(args.layouts, args.types, getattr(args, "vehicle", None))
         what = "--layouts"
     else:
+        if getattr(args, "vehicle", None):
+            raise ValueError("--vehicle: only with --layouts (the grid's cases are drawn for the paper's car)")
         items, repeats = cases_from(args.sample, args.cases, args.types)
         what = args.cases
     if repeats:
@@ -264,6 +266,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="layout files or folders (native .yaml/.json, TPCAP .csv) instead of grid cases; "
         "writes OUT/layouts.md and a figure per layout",
+    )
+    e.add_argument(
+        "--vehicle",
+        default=None,
+        help="with --layouts: the car of every layout, paper, tpcap or a YAML file of vehicle fields "
+        "(default: each file's own; TPCAP .csv files: tpcap)",
     )
     e.add_argument(
         "--chunk",

@@ -78,7 +78,7 @@ def draw_layout(layout: Layout, rows: pd.DataFrame, path: Path) -> Path:
     import matplotlib.pyplot as plt
     from matplotlib.patches import Polygon as Patch
 
-    v = VehicleParams.table_ii()
+    v = layout.vehicle or VehicleParams.table_ii()
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     for poly in layout.obstacles:
         ax.add_patch(Patch(poly, closed=True, fc="0.45", ec="0.2", lw=0.8))

@@ -45,11 +45,20 @@ PAPER = {
 
 def comfortable(df: pd.DataFrame, vehicle: VehicleParams | None = None) -> pd.Series:
     """Rows whose slot is comfortable: parallel SL >= 1.25 x car length, reverse and angle
-    SW >= car width + 0.4 m (Table II's car unless ``vehicle`` is given)."""
+    SW >= car width + 0.4 m, for ``vehicle`` if given, else each row's car (layout rows name
+    theirs in ``vehicle``; a custom car's rows count as not comfortable), else Table II's."""
     v = vehicle or VehicleParams.table_ii()
+    length, width = pd.Series(v.length, index=df.index), pd.Series(v.width, index=df.index)
+    if vehicle is None and "vehicle" in df:
+        from mirrorpark_env.vehicle import VEHICLES, vehicle_named
+
+        cars = {n: vehicle_named(n) for n in VEHICLES}
+        named = df["vehicle"].where(df["vehicle"].notna(), "paper")
+        length = named.map(lambda n: cars[n].length if n in cars else math.inf).astype(float)
+        width = named.map(lambda n: cars[n].width if n in cars else math.inf).astype(float)
     parallel = df["parking_type"] == "parallel"
-    return (parallel & (df["slot_length"] >= 1.25 * v.length - 1e-9)) | (
-        ~parallel & (df["slot_width"] >= v.width + 0.4 - 1e-9)
+    return (parallel & (df["slot_length"] >= 1.25 * length - 1e-9)) | (
+        ~parallel & (df["slot_width"] >= width + 0.4 - 1e-9)
     )
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from mirrorpark_env.criteria import iso_pose_exists
 from mirrorpark_env.layout import Layout
 from mirrorpark_env.scenario import Scenario
-from mirrorpark_env.vehicle import VehicleParams
+from mirrorpark_env.vehicle import VehicleParams, vehicle_name
 
 from .causes import episode_cause
 from .provenance import current_id
@@ -64,6 +64,7 @@ def layout_fields(lay: Layout) -> dict[str, Any]:
     return {
         "case_id": lay.name,
         "layout": lay.name,
+        "vehicle": "paper" if lay.vehicle is None else (vehicle_name(lay.vehicle) or "custom"),
         "parking_type": s.parking_type.value if s is not None else "none",
         "road_width": lay.road_width,
         "slot_length": s.length if s is not None else math.nan,
@@ -83,7 +84,8 @@ def _feasible(case: Scenario | Layout) -> bool:
         ptype, sl, sw = case.slot.parking_type, case.slot.length, case.slot.width
     else:
         ptype, sl, sw = case.parking_type, case.slot_length, case.slot_width
-    return bool(iso_pose_exists(ptype.value, sl, sw, VehicleParams.table_ii()))
+    car = case.vehicle if isinstance(case, Layout) and case.vehicle is not None else VehicleParams.table_ii()
+    return bool(iso_pose_exists(ptype.value, sl, sw, car))
 
 
 def unique(scenarios: Iterable[Scenario]) -> tuple[list[Scenario], int]:

@@ -46,6 +46,9 @@ COLUMNS: tuple[Column, ...] = (
     Column("planner", "str", doc="the planner's name"),
     Column("case_id", "str", doc="the grid case's id, or the layout's name"),
     Column("layout", "str", exported=False, doc="the layout's name (layout rows only)"),
+    Column(
+        "vehicle", "str", exported=False, doc="the car a layout ran with: paper, tpcap or custom (layout rows only)"
+    ),
     Column("parking_type", "str", doc="parallel, reverse, angle (none: a layout without a slot)"),
     Column("road_width", "float", "m"),
     Column("slot_length", "float", "m"),

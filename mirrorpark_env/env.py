@@ -105,7 +105,7 @@ class MirrorParkEnv(gym.Env):
         self.cfg: EnvConfig = (
             config if isinstance(config, EnvConfig) else merge(default_env(), config, "MirrorPark-v0 config")
         )
-        self.params = VehicleParams.from_config(self.cfg.vehicle)
+        self.default_params = self.params = VehicleParams.from_config(self.cfg.vehicle)
         self.model = TruthModel(self.params, self.cfg.dt, self.cfg.substep)
         self.render_mode = render_mode
         self._renderer = Renderer(self.cfg.render, render_mode, self.cfg.dt) if render_mode is not None else None
@@ -143,7 +143,10 @@ class MirrorParkEnv(gym.Env):
         if options.get("layout") is not None and options.get("scenario") is not None:
             raise ValueError("reset options: give 'scenario' or 'layout', not both")
         layout = self._layout_from(options)
-        g = layout.build(self.params)
+        params = layout.vehicle or self.default_params  # a scene's own car, else the config's
+        if params != self.params:
+            self.params, self.model = params, TruthModel(params, self.cfg.dt, self.cfg.substep)
+        g = layout.build(params)
         self.geometry = g
         self.criteria = SuccessCriteria(g, self.cfg.criteria)
         s = g.start
@@ -178,7 +181,7 @@ class MirrorParkEnv(gym.Env):
         spec = options.get("layout")
         if spec is None:
             sc = self._scenario_from(options.get("scenario"))
-            return grid_layout(sc, self.params, self.cfg.scene_margin)
+            return grid_layout(sc, self.default_params, self.cfg.scene_margin)
         if isinstance(spec, Layout):
             spec.check_placement()  # a file's layouts are checked at load; one built in code here (reset builds it)
             return spec
@@ -195,13 +198,13 @@ class MirrorParkEnv(gym.Env):
             return Scenario.from_case_id(spec)
         if spec is not None:
             raise ValueError(f"reset options: 'scenario' must be a Scenario or a case id, got {type(spec).__name__}")
-        grid = grid_for(self.params)  # only cases that can be generated for this car
+        grid = grid_for(self.default_params)  # only cases that can be generated for this car
         if self._pool is None:
             self._pool = np.concatenate([grid.indices(t) for t in self.cfg.parking_types])
             if not len(self._pool):
                 raise ValueError(
                     f"vehicle: no Table III case of {', '.join(self.cfg.parking_types)} fits a car "
-                    f"{self.params.length:.2f} m long and {self.params.width:.2f} m wide"
+                    f"{self.default_params.length:.2f} m long and {self.default_params.width:.2f} m wide"
                 )
         return grid.scenario(int(self._pool[self.np_random.integers(len(self._pool))]))
 

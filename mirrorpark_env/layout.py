@@ -52,8 +52,8 @@ def _polygon(name: str, value) -> np.ndarray:
         raise ValueError(f"{name}: expected at least 3 (x, y) vertices, got shape {p.shape}")
     if not np.all(np.isfinite(p)):
         raise ValueError(f"{name}: vertices must be finite")
-    if len(p) > 3 and np.allclose(p[0], p[-1]):
-        p = p[:-1]  # a closed ring's repeated first vertex
+    if len(p) > 3 and np.allclose(p[0], p[-1], rtol=0.0, atol=1e-9):
+        p = p[:-1]  # a closed ring's repeated first vertex (absolute: coordinates may be ~1e9 m)
     return p
 
 
@@ -143,6 +143,7 @@ class Layout:
     road_width: float = 0.0  # depth of the road beside the slot where known (the grid's RW)
     origin: tuple[float, float] = (0.0, 0.0)  # where this frame's origin lies in the source file's
     scenario: Scenario | None = None  # the grid case this layout is, if any
+    vehicle: VehicleParams | None = None  # the car this scene is for (None: the environment's)
 
     def __post_init__(self) -> None:
         obs = tuple(_polygon(f"obstacles[{i}]", p) for i, p in enumerate(self.obstacles))
@@ -158,6 +159,8 @@ class Layout:
             object.__setattr__(self, "bounds", b)
         if not self.name or not isinstance(self.name, str):
             raise ValueError(f"name: a non-empty string, got {self.name!r}")
+        if self.vehicle is not None and not isinstance(self.vehicle, VehicleParams):
+            raise ValueError(f"vehicle: a VehicleParams (vehicle.vehicle_named), got {type(self.vehicle).__name__}")
 
     @property
     def case_id(self) -> str:
@@ -191,8 +194,9 @@ class Layout:
         return (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
 
     def build(self, vehicle: VehicleParams | None = None) -> ScenarioGeometry:
-        """The geometry of this layout for ``vehicle``; raises ``ValueError`` naming what is wrong."""
-        vehicle = vehicle or VehicleParams.table_ii()
+        """The geometry of this layout for ``vehicle`` (default: the layout's own car, else the
+        paper's); raises ``ValueError`` naming what is wrong."""
+        vehicle = vehicle or self.vehicle or VehicleParams.table_ii()
         slot, edges, ptype, sl, sw = None, (), None, math.nan, math.nan
         if self.slot is not None:
             s = self.slot
@@ -226,8 +230,8 @@ class Layout:
         return g
 
     def check(self, vehicle: VehicleParams | None = None) -> ScenarioGeometry:
-        """The geometry for ``vehicle`` (``build``, which refuses a car overlapping an obstacle
-        at the start or target), after ``check_placement``."""
+        """The geometry for ``vehicle`` (``build``: by default the layout's own car; it refuses
+        a car overlapping an obstacle at the start or target), after ``check_placement``."""
         self.check_placement()
         return self.build(vehicle)
 
@@ -277,6 +281,7 @@ class Layout:
             else (self.bounds[0] - o[0], self.bounds[1] - o[0], self.bounds[2] - o[1], self.bounds[3] - o[1]),
             road_width=self.road_width,
             origin=(float(self.origin[0] + o[0]), float(self.origin[1] + o[1])),
+            vehicle=self.vehicle,
         )
 
 

@@ -14,12 +14,14 @@ Native format (docs/layouts.md), one layout per file; angles in degrees at this 
       road_heading_deg: 0           # optional: direction of travel past the slot
     bounds: [x_min, x_max, y_min, y_max]   # optional scene box
     road_width: 6.0                 # optional
+    vehicle: paper                  # optional: paper | tpcap | a YAML file of vehicle fields | the fields
 
 TPCAP (the trajectory-planning competition for automated parking) writes one case per row,
 read as is: ``x0, y0, theta0, xf, yf, thetaf, m, n_1 ... n_m`` then the m polygons'
 vertices as x, y pairs; headings in radians (any value: wrapped), coordinates anywhere
-(recentred when far from the origin), polygons convex or not. The slot is inferred
-(``slot_inference``). A file may hold several rows: layout ``STEM`` for one, else
+(recentred when far from the origin), polygons convex or not. Its car is TPCAP's
+(``vehicle.vehicle_named("tpcap")``) and the slot is inferred (``slot_inference``) in the
+recentred frame. A file may hold several rows: layout ``STEM`` for one, else
 ``STEM#1``, ``STEM#2``, ... Every error names the file, the row or field and the problem.
 """
 
@@ -33,9 +35,10 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from .config import StrictModel, validate
+from .config import StrictModel, VehicleConfig, validate
 from .layout import Layout, Slot
 from .slot_inference import infer_slot
+from .vehicle import VehicleParams, vehicle_name, vehicle_named
 
 SUFFIXES = (".yaml", ".yml", ".json", ".csv")
 
@@ -74,21 +77,32 @@ class LayoutModel(StrictModel):
     slot: SlotModel | Literal["infer"] | None = None
     bounds: tuple[float, float, float, float] | None = None
     road_width: float = Field(0.0, ge=0, le=100)
+    vehicle: str | VehicleConfig | None = None  # paper | tpcap | FILE (beside the layout) | the fields
 
 
 def _pose(p: PoseModel) -> tuple[float, float, float]:
     return (p.x, p.y, p.radians())
 
 
-def from_model(m: LayoutModel, name: str) -> Layout:
-    """A validated native record as a ``Layout`` (recentred when far from the origin)."""
+def vehicle_of(spec: str | VehicleConfig | None, folder: Path | None = None) -> VehicleParams | None:
+    """A layout's car: a name, a YAML file (relative to ``folder``), the fields, or None."""
+    if spec is None:
+        return None
+    if isinstance(spec, VehicleConfig):
+        return VehicleParams.from_config(spec)
+    if spec in ("paper", "tpcap") or folder is None or Path(spec).is_absolute():
+        return vehicle_named(spec)
+    return vehicle_named(str(folder / spec))
+
+
+def from_model(m: LayoutModel, name: str, folder: Path | None = None, vehicle: VehicleParams | None = None) -> Layout:
+    """A validated native record as a ``Layout`` (recentred when far from the origin, its
+    slot inferred there where it says ``infer``); ``vehicle`` overrides the record's car."""
     start, target = _pose(m.start), _pose(m.target)
     slot = None
     if isinstance(m.slot, SlotModel):
         rh = None if m.slot.road_heading_deg is None else math.radians(m.slot.road_heading_deg)
         slot = Slot(m.slot.corners, m.slot.type, m.slot.entrance, rh)
-    elif m.slot == "infer":
-        slot, _ = infer_slot(m.obstacles, start, target)
     layout = Layout(
         obstacles=tuple(m.obstacles),  # a bad polygon is named when it is cut into parts, below
         start=start,
@@ -98,10 +112,22 @@ def from_model(m: LayoutModel, name: str) -> Layout:
         name=m.name or name,
         bounds=m.bounds,
         road_width=m.road_width,
+        vehicle=vehicle or vehicle_of(m.vehicle, folder),
     )
     layout = layout.recentred()
+    if m.slot == "infer":
+        layout = with_inferred_slot(layout)
     layout.check()  # at load, named: a bad polygon, a start no car can take
     return layout
+
+
+def with_inferred_slot(layout: Layout) -> Layout:
+    """``layout`` with the slot read off its obstacles around the target for its car (none
+    where none fits: the target pose is then the goal)."""
+    from dataclasses import replace
+
+    slot, _ = infer_slot(layout.obstacles, layout.start, layout.target, layout.vehicle)
+    return replace(layout, slot=slot)
 
 
 def to_dict(layout: Layout) -> dict:
@@ -127,6 +153,21 @@ def to_dict(layout: Layout) -> dict:
         d["bounds"] = list(layout.bounds)
     if layout.road_width:
         d["road_width"] = layout.road_width
+    if layout.vehicle is not None:
+        v = layout.vehicle
+        d["vehicle"] = vehicle_name(v) or {
+            "wheelbase": v.wheelbase,
+            "rear_overhang": v.rear_overhang,
+            "front_length": v.front_length,
+            "width": v.width,
+            "max_steer_rad": v.max_steer,
+            "accel_min": v.a_min,
+            "accel_max": v.a_max,
+            "speed_min": v.v_min,
+            "speed_max": v.v_max,
+            "tau_accel_s": v.tau_a,
+            "tau_steer_s": v.tau_delta,
+        }
     return d
 
 
@@ -154,7 +195,7 @@ def _read_text(p: Path) -> str:
         raise ValueError(f"{p}: not UTF-8 text (byte {err.start})") from None
 
 
-def _native(p: Path) -> list[Layout]:
+def _native(p: Path, vehicle: VehicleParams | None = None) -> list[Layout]:
     text = _read_text(p)
     if p.suffix.lower() == ".json":
         try:
@@ -170,7 +211,7 @@ def _native(p: Path) -> list[Layout]:
             raise ValueError(f"{p}: not valid YAML: {err}") from None
     m = validate(LayoutModel, data, source=str(p))
     try:
-        return [from_model(m, p.stem)]
+        return [from_model(m, p.stem, p.parent, vehicle)]
     except ValueError as err:
         raise ValueError(f"{p}: {err}") from None
 
@@ -218,7 +259,7 @@ def _is_float(v: str) -> bool:
     return True
 
 
-def _tpcap(p: Path) -> list[Layout]:
+def _tpcap(p: Path, vehicle: VehicleParams | None = None) -> list[Layout]:
     rows = [r for r in csv.reader(_read_text(p).splitlines()) if any(c.strip() for c in r)]
     if not rows:
         raise ValueError(f"{p}: no rows")
@@ -227,8 +268,8 @@ def _tpcap(p: Path) -> list[Layout]:
         name = p.stem if len(rows) == 1 else f"{p.stem}#{n}"
         try:
             start, target, polys = parse_tpcap_row(row)
-            slot, _ = infer_slot(polys, start, target)
-            layout = Layout(tuple(polys), start, target, slot=slot, name=name).recentred()
+            layout = Layout(tuple(polys), start, target, name=name, vehicle=vehicle or vehicle_named("tpcap"))
+            layout = with_inferred_slot(layout.recentred())  # inferred in the recentred frame: exact there
             layout.check()  # at load, named: a bad polygon, a start no car can take
             out.append(layout)
         except ValueError as err:
@@ -236,23 +277,34 @@ def _tpcap(p: Path) -> list[Layout]:
     return out
 
 
-def load_layouts(path: str | Path) -> list[Layout]:
-    """Every layout in a file, or in the layout files of a folder (sorted by name)."""
+def load_layouts(path: str | Path, vehicle: VehicleParams | None = None) -> list[Layout]:
+    """Every layout in a file, or in the layout files of a folder (sorted by name). A folder
+    with invalid files is refused whole, every invalid file named with its problem.
+    ``vehicle``: the car of every layout, whatever its file says (TPCAP files: TPCAP's car;
+    native files: their ``vehicle``, else the environment's)."""
     p = Path(path)
     if p.is_dir():
         files = sorted(f for f in p.iterdir() if f.suffix.lower() in SUFFIXES)
         if not files:
             raise ValueError(f"{p}: no layout files ({', '.join(SUFFIXES)})")
-        return [lay for f in files for lay in load_layouts(f)]
+        out, errors = [], []
+        for f in files:
+            try:
+                out += load_layouts(f, vehicle)
+            except ValueError as err:
+                errors.append(str(err))
+        if errors:
+            raise ValueError(f"{len(errors)} of {len(files)} layout files are invalid: " + "; ".join(errors))
+        return out
     if not p.exists():
         raise ValueError(f"{p}: no such layout file or folder")
     suffix = p.suffix.lower()
     if suffix not in SUFFIXES:
         raise ValueError(f"{p}: a layout file ends in {', '.join(SUFFIXES)}")
-    return _tpcap(p) if suffix == ".csv" else _native(p)
+    return _tpcap(p, vehicle) if suffix == ".csv" else _native(p, vehicle)
 
 
-def load_layout(path: str | Path) -> Layout:
+def load_layout(path: str | Path, vehicle: VehicleParams | None = None) -> Layout:
     """The one layout in a file (a TPCAP file of several rows: name one with ``FILE#ROW``)."""
     s = str(path)
     row = None
@@ -261,7 +313,7 @@ def load_layout(path: str | Path) -> Layout:
         if not r.isdigit() or int(r) < 1:
             raise ValueError(f"{path}: after '#' comes a row number >= 1")
         row = int(r)
-    layouts = load_layouts(s)
+    layouts = load_layouts(s, vehicle)
     if row is not None:
         if row > len(layouts):
             raise ValueError(f"{s}: has {len(layouts)} row(s), not {row}")

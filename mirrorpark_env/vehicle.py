@@ -302,3 +302,35 @@ def from_action(params: VehicleParams, action) -> tuple[float, float]:
 @cache
 def _table_ii() -> VehicleParams:
     return VehicleParams.from_config(default_vehicle())
+
+
+# Cars by name: each a file of ``VehicleConfig``'s fields among the shipped configs.
+VEHICLES = {"paper": "vehicle.yaml", "tpcap": "vehicle_tpcap.yaml"}
+
+
+def vehicle_named(spec: str) -> VehicleParams:
+    """A car by name (``paper``: the paper's Table II; ``tpcap``: the TPCAP benchmark's,
+    ``configs/vehicle_tpcap.yaml``) or from a YAML file of ``configs/vehicle.yaml``'s fields.
+    Raises ``ValueError`` naming the names allowed or the file's problem."""
+    from pathlib import Path
+
+    from .config import load
+
+    if spec in VEHICLES:
+        return _shipped(spec)
+    p = Path(spec)
+    if p.suffix.lower() not in (".yaml", ".yml") or not p.is_file():
+        raise ValueError(f"vehicle: one of {sorted(VEHICLES)} or a YAML file of vehicle fields, got {spec!r}")
+    return VehicleParams.from_config(load(VehicleConfig, p))
+
+
+@cache
+def _shipped(name: str) -> VehicleParams:
+    from .config import default_config_path, load
+
+    return VehicleParams.from_config(load(VehicleConfig, default_config_path(VEHICLES[name])))
+
+
+def vehicle_name(params: VehicleParams) -> str | None:
+    """The name of a shipped car with exactly these parameters, or None."""
+    return next((n for n in VEHICLES if vehicle_named(n) == params), None)

@@ -3,7 +3,11 @@
 TPCAP publishes its cases as CSV rows (start pose, target pose, obstacle polygons) that
 we do not have; these are written in that format to test the reader and every planner on
 scenes outside the grid: parallel, perpendicular and angle slots among parked cars,
-pillars, kerbs and planters. Each scene is drawn in a local frame (road along +x, slot
+pillars, kerbs and planters, drawn for TPCAP's car (4.689 m by 1.942 m, the car a TPCAP
+file runs with). Slot sizes are given as for the paper's car (3.82 m by 1.67 m) and
+enlarged by the difference: parallel lengths in proportion to the car's length,
+perpendicular and angle widths by the difference in width, the angle slot's length by
+the difference in length. Each scene is drawn in a local frame (road along +x, slot
 below it, as in the grid) and then placed in the world by a rotation, a shift and, for
 some, a reflection (the car then passes with the slot on its left). Three hold a
 non-convex obstacle, two lie thousands of metres from the origin, and several headings
@@ -20,8 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-L_OFF = 1.2  # [m] rear axle to the body centre of the paper's car (front 3.11, rear 0.71)
+L_OFF = 0.5 * (3.76 - 0.929)  # [m] rear axle to the body centre of TPCAP's car (front 3.76, rear 0.929)
 CAR = (4.5, 1.8)  # [m] a parked neighbour's outline
+LONGER = 4.689 / 3.82  # TPCAP's car against the paper's, in length
+WIDER = 1.942 - 1.67  # [m] ... and in width
 
 
 def rect(cx, cy, length, width, heading=0.0):
@@ -40,7 +46,9 @@ def axle(cx, cy, heading):
 
 
 def parallel(sl, road, start, clutter=(), kerb=None):
-    """Slot between two parked cars, from x = 0 to sl, the kerb 2.2 m below the road edge."""
+    """Slot between two parked cars, from x = 0 to sl (given for the paper's car), the kerb
+    2.2 m below the road edge."""
+    sl = round(sl * LONGER, 3)
     obs = [rect(-2.35, -1.1, *CAR), rect(sl + 2.35, -1.1, *CAR), rect(-7.2, -1.1, *CAR)]
     obs.append(kerb if kerb is not None else box(-14.0, sl + 12.0, -3.0, -2.2))
     obs.append(box(-14.0, sl + 12.0, road, road + 0.6))  # the far side of the road
@@ -49,7 +57,9 @@ def parallel(sl, road, start, clutter=(), kerb=None):
 
 
 def perpendicular(sw, aisle, start, clutter=(), back=None):
-    """Slot between two cars parked side by side (x = 0 to sw), a wall 5.4 m deep."""
+    """Slot between two cars parked side by side (x = 0 to sw, given for the paper's car), a
+    wall 5.4 m deep."""
+    sw = round(sw + WIDER, 3)
     obs = [
         rect(-1.0, -2.45, CAR[1], CAR[0]),
         rect(sw + 1.0, -2.45, CAR[1], CAR[0]),
@@ -62,11 +72,14 @@ def perpendicular(sw, aisle, start, clutter=(), back=None):
 
 
 def angled(sw, aisle, start, clutter=()):
-    """A 45 deg slot (the grid's angle geometry): width sw, 5.0 m long, cars either side."""
+    """A 45 deg slot (the grid's angle geometry): width sw and 5.0 m long for the paper's
+    car, cars either side."""
+    sw = round(sw + WIDER, 3)
+    depth = 5.0 + 4.689 - 3.82
     ax = np.array([-1.0, -1.0]) / math.sqrt(2)  # into the slot
     across = np.array([1.0, -1.0]) / math.sqrt(2)
     mid_entrance = 0.5 * sw * across
-    centre = mid_entrance + 2.5 * ax
+    centre = mid_entrance + 0.5 * depth * ax
     step = (0.5 * sw + 1.0) * across  # the neighbours' centres: 0.1 m beyond the slot's sides
     h = math.pi / 4
     far = step + 2.3 * across  # a third car beyond the right neighbour
@@ -93,7 +106,14 @@ CASES = [
     ("par07", lambda: parallel(4.4, 6.0, (6.8, 1.4, 0.0)), 0.3, (0.0, 20.0), False, 0.0),  # tight: 1.2 car lengths
     ("per01", lambda: perpendicular(2.5, 6.0, (5.0, 3.0, 0.0)), 0.0, (0.0, 0.0), False, 0.0),
     ("per02", lambda: perpendicular(2.3, 6.5, (5.5, 3.2, 0.1), [PILLAR(-2.0, 6.0)]), 1.2, (20.0, 5.0), False, 0.0),
-    ("per03", lambda: perpendicular(2.8, 6.0, (6.0, 3.0, 0.0), back=U_GARAGE), -1.0, (-8.0, 30.0), False, 2 * math.pi),
+    (  # the U garage is 2.7 m wide inside: a slot of 2.428 m for the paper's car is 2.7 m for TPCAP's
+        "per03",
+        lambda: perpendicular(2.428, 6.0, (6.0, 3.0, 0.0), back=U_GARAGE),
+        -1.0,
+        (-8.0, 30.0),
+        False,
+        2 * math.pi,
+    ),
     ("per04", lambda: perpendicular(2.6, 7.0, (5.0, 3.5, -0.15)), 2.2, (-2743.9, 4170.2), True, 0.0),
     ("per05", lambda: perpendicular(2.4, 5.5, (4.5, 2.8, 0.0), [T_PILLAR]), 0.5, (60.0, -15.0), False, 0.0),
     ("per06", lambda: perpendicular(2.2, 6.0, (5.0, 3.0, 0.2)), -2.9, (-40.0, -40.0), True, 4 * math.pi),

@@ -63,7 +63,7 @@ def test_tpcap_row_far_away_with_headings_beyond_pi_and_a_non_convex_obstacle(tm
     car = [(ox + 4, oy - 2), (ox + 8, oy - 2), (ox + 8, oy), (ox + 4, oy)]
     f = tmp_path / "far.csv"
     f.write_text(_row(start, target, [wall, car]))
-    lay = load_layout(f)
+    lay = load_layout(f, P)  # drawn for the paper's car (TPCAP's, the default, would overlap the wall)
     assert lay.name == "far"
     assert lay.origin == (3513.0, -1822.0)  # the target rounded to whole metres: shifts are exact
     assert lay.start[2] == pytest.approx(0.1, abs=1e-12)
@@ -94,7 +94,7 @@ def test_slot_inferred_from_parked_cars_and_a_kerb(tmp_path):
     polys = [[(-5, -2), (-0.1, -2), (-0.1, -0.2), (-5, -0.2)], [(6.1, -2), (11, -2), (11, -0.2), (6.1, -0.2)]]
     polys.append([(-8, -3), (14, -3), (14, -2.2), (-8, -2.2)])
     f.write_text(_row((9.0, 1.5, 0.0), (tx, -1.1, 0.0), polys))
-    s = load_layout(f).slot
+    s = load_layout(f, P).slot  # the paper's car: TPCAP's is 4.69 m long
     assert s.parking_type.value == "parallel"
     # Centred on the car: ends 3.0 - 0.1 = 2.9 m either side; across, the kerb gap both ways.
     assert s.length == pytest.approx(2 * 3.1, abs=1e-9)
@@ -249,7 +249,8 @@ def test_the_mirror_planner_parks_a_turned_and_mirrored_layout_as_the_grid_case(
     assert b["path_length"] == pytest.approx(a["path_length"], abs=0.05)
 
 
-def test_without_a_slot_mirror_says_so_and_hybrid_astar_parks_at_the_target_pose():
+def test_without_a_slot_both_planners_park_at_the_target_pose():
+    """Hybrid A* plans to the pose; the mirror planner in a slot it draws there."""
     lay = Layout(
         obstacles=([(4, -3), (6, -3), (6, -1), (4, -1)], L_SHAPE),
         start=(-6.0, 0.0, 0.0),
@@ -257,13 +258,21 @@ def test_without_a_slot_mirror_says_so_and_hybrid_astar_parks_at_the_target_pose
         name="open_lot",
     )
     env = gym.make("MirrorPark-v0")
+    for planner in ("mirror", "hybrid-astar"):
+        info, _ = _episode(env, make_policy(planner), lay)
+        assert info["is_success"] and not info["collision"], planner
+        assert 0.0 <= info["margins"]["M_pos"] <= 0.15
+
+
+def test_a_target_boxed_in_but_behind_gets_no_slot_from_the_mirror_planner():
+    """Walls left, right and ahead within 1 m: no side but the rear to come in by."""
+    walls = [[(-2, 0.9), (6, 0.9), (6, 1.5), (-2, 1.5)], [(-2, -1.5), (6, -1.5), (6, -0.9), (-2, -0.9)]]
+    walls.append([(3.5, -1.5), (4.2, -1.5), (4.2, 1.5), (3.5, 1.5)])
+    lay = Layout(obstacles=walls, start=(-8.0, 0.0, 0.0), target=(0.0, 0.0, 0.0), name="boxed")
+    env = gym.make("MirrorPark-v0")
     mirror = make_policy("mirror")
     info, _ = _episode(env, mirror, lay)
     assert mirror.status == "no_slot" and mirror.gave_up and not info["is_success"] and info["stopped"]
-    hybrid = make_policy("hybrid-astar")
-    info, _ = _episode(env, hybrid, lay)
-    assert info["is_success"] and not info["collision"]
-    assert 0.0 <= info["margins"]["M_pos"] <= 0.15
 
 
 def test_lidar_reads_the_distance_to_a_wall():
@@ -298,8 +307,8 @@ def test_the_tpcap_layouts_hold_what_they_claim():
 def test_mirror_parks_every_comfortable_tpcap_layout():
     env = gym.make("MirrorPark-v0")
     for lay in load_layouts(TPCAP):
-        s = lay.slot
-        comfy = s.length >= 1.25 * P.length if s.parking_type.value == "parallel" else s.width >= P.width + 0.4
+        s, car = lay.slot, lay.vehicle  # TPCAP's car
+        comfy = s.length >= 1.25 * car.length if s.parking_type.value == "parallel" else s.width >= car.width + 0.4
         if not comfy:
             continue
         info, _ = _episode(env, make_policy("mirror"), lay)

@@ -20,6 +20,7 @@ import numpy as np
 from mirrorpark_env.config import ParkingType
 from mirrorpark_env.layout import Layout, Slot
 from mirrorpark_env.scenario import ScenarioGeometry
+from mirrorpark_env.slot_inference import planning_slot
 from mirrorpark_env.vehicle import VehicleState, to_action
 
 from ..base import PlanStats, Policy
@@ -83,11 +84,24 @@ def _rot(d: np.ndarray, angle: float) -> np.ndarray:
     return np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]])
 
 
-def slot_frame(g: ScenarioGeometry) -> SlotFrame:
-    """The frame that puts ``g``'s slot where the grid's is; ``NoSlot`` where none can."""
-    if g.slot is None or g.layout is None or g.layout.slot is None:
-        raise NoSlot("no_slot", "the layout has no slot: the mirror line needs one")
-    s: Slot = g.layout.slot
+def planner_slot(g: ScenarioGeometry) -> Slot:
+    """The slot a planner in the slot's frame plans in: the layout's, else one drawn around
+    the car at the target (``slot_inference.planning_slot``: a target in open space);
+    ``NoSlot`` where neither exists."""
+    if g.layout is None:
+        raise NoSlot("no_slot", "the scene is no layout: no slot to plan in")
+    if g.layout.slot is not None:
+        return g.layout.slot
+    slot, why = planning_slot(g.obstacles.polygons, (g.start.x, g.start.y, g.start.theta), g.target, g.vehicle)
+    if slot is None:
+        raise NoSlot("no_slot", f"the layout has no slot and none can be drawn at the target: {why}")
+    return slot
+
+
+def slot_frame(g: ScenarioGeometry, s: Slot | None = None) -> SlotFrame:
+    """The frame that puts slot ``s`` (default: ``planner_slot(g)``) where the grid's is;
+    ``NoSlot`` where none can."""
+    s = s if s is not None else planner_slot(g)
     n_out = s.outward()
     t = np.array([math.cos(g.target[2]), math.sin(g.target[2])])
     if s.parking_type is ParkingType.PARALLEL:
@@ -120,10 +134,10 @@ def in_slot_frame(g: ScenarioGeometry) -> tuple[ScenarioGeometry, SlotFrame | No
     """``g`` in its slot's frame and the frame (None for a grid case: already there)."""
     if g.scenario is not None:
         return g, None
-    f = slot_frame(g)
-    if f.identity and g.road_width > 0:
+    s = planner_slot(g)
+    f = slot_frame(g, s)
+    if f.identity and g.road_width > 0 and g.slot is not None:
         return g, None  # already there, to the last bit
-    s = g.layout.slot
     parts = tuple(f.points(p) for p in g.obstacles.polygons)
     slot = Slot(f.points(s.corners), s.parking_type, s.entrance, 0.0, s.length, s.width)
     x0, x1, y0, y1 = g.bounds

@@ -44,6 +44,7 @@ class CostToGoConfig(StrictModel):
     steer_cost: float = Field(0.05, ge=0)  # extra per metre at full lock: straight wins ties, no needless S-bends
     switch_cost: float = Field(3.0, ge=0)  # per direction switch
     margin: float = Field(10.0, gt=0, le=50)  # [m] along the road beyond the slot
+    start_margin: float = Field(3.0, ge=0, le=50)  # [m] the lattice reaches this far around the start
     # Exact multi-point turns out of the slot from the target (arcs per turn, 0: none): V's
     # sources besides the target, where a tight slot is finer than the lattice.
     in_slot_arcs: int = Field(12, ge=0, le=100)
@@ -87,6 +88,9 @@ class CostToGo:
         x1 = min(bx1, slot[:, 0].max() + cfg.margin)
         y0 = max(by0, slot[:, 1].min() - 1.0)
         y1 = min(by1, geometry.road_width + 1.0)
+        sx, sy, m = geometry.start.x, geometry.start.y, cfg.start_margin  # and the start (a lot's far aisle)
+        x0, x1 = min(x0, max(bx0, sx - m)), max(x1, min(bx1, sx + m))
+        y0, y1 = min(y0, max(by0, sy - m)), max(y1, min(by1, sy + m))
         self.i0 = math.floor((x0 - tx) / res)
         self.j0 = math.floor((y0 - ty) / res)
         self.nx = math.floor((x1 - tx) / res) - self.i0 + 1
