@@ -60,20 +60,12 @@ def layouts_from(paths: list[str], types: list[str] | None, vehicle: str | None 
     names dropped, and how many were dropped. ``vehicle``: every layout's car (a name or a
     YAML file, ``vehicle.vehicle_named``) instead of its file's. Invalid files are refused
     all together, each named with its problem."""
-    from mirrorpark_env.layout_io import load_layouts
+    from mirrorpark_env.layout_io import load_many
     from mirrorpark_env.vehicle import vehicle_named
 
     from .runner import unique
 
-    car = vehicle_named(vehicle) if vehicle is not None else None
-    layouts, errors = [], []
-    for p in paths:
-        try:
-            layouts += load_layouts(p, car)
-        except ValueError as err:
-            errors.append(str(err))
-    if errors:
-        raise ValueError("; ".join(errors))
+    layouts = load_many(paths, vehicle_named(vehicle) if vehicle is not None else None)
     if types:
         layouts = [lay for lay in layouts if lay.slot is not None and lay.slot.parking_type.value in types]
         if not layouts:

@@ -287,21 +287,29 @@ def load_layouts(path: str | Path, vehicle: VehicleParams | None = None) -> list
         files = sorted(f for f in p.iterdir() if f.suffix.lower() in SUFFIXES)
         if not files:
             raise ValueError(f"{p}: no layout files ({', '.join(SUFFIXES)})")
-        out, errors = [], []
-        for f in files:
-            try:
-                out += load_layouts(f, vehicle)
-            except ValueError as err:
-                errors.append(str(err))
-        if errors:
-            raise ValueError(f"{len(errors)} of {len(files)} layout files are invalid: " + "; ".join(errors))
-        return out
+        return load_many(files, vehicle)
     if not p.exists():
         raise ValueError(f"{p}: no such layout file or folder")
     suffix = p.suffix.lower()
     if suffix not in SUFFIXES:
         raise ValueError(f"{p}: a layout file ends in {', '.join(SUFFIXES)}")
     return _tpcap(p, vehicle) if suffix == ".csv" else _native(p, vehicle)
+
+
+def load_many(paths: list, vehicle: VehicleParams | None = None) -> list[Layout]:
+    """The layouts of every file or folder in ``paths`` (``load_layouts``); any invalid ones
+    refuse them all, each named with its problem, in one line."""
+    out, errors = [], []
+    for p in paths:
+        try:
+            out += load_layouts(p, vehicle)
+        except ValueError as err:
+            errors.append(str(err))
+    if len(paths) == 1 and errors:
+        raise ValueError(errors[0])
+    if errors:
+        raise ValueError(f"{len(errors)} of {len(paths)} layout files are invalid: " + "; ".join(errors))
+    return out
 
 
 def load_layout(path: str | Path, vehicle: VehicleParams | None = None) -> Layout:
