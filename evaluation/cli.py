@@ -11,6 +11,7 @@ from pathlib import Path
 from mirrorpark_env.config import PARKING_TYPES
 
 from . import registry
+from .cli_lots import add_lots
 from .cli_rl import add_train_rl
 
 
@@ -332,6 +333,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.set_defaults(func=cmd_bench)
 
     add_train_rl(sub, _positive_int)
+    add_lots(sub, _positive_int)
     return ap
 
 

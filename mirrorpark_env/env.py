@@ -137,11 +137,11 @@ class MirrorParkEnv(gym.Env):
                 f"got {type(options).__name__}"
             )
         options = options or {}
-        unknown = set(options) - {"scenario", "layout"}
+        unknown = set(options) - {"scenario", "layout", "lot"}
         if unknown:
-            raise ValueError(f"reset options: unknown {sorted(unknown)}; allowed: ['layout', 'scenario']")
-        if options.get("layout") is not None and options.get("scenario") is not None:
-            raise ValueError("reset options: give 'scenario' or 'layout', not both")
+            raise ValueError(f"reset options: unknown {sorted(unknown)}; allowed: ['layout', 'lot', 'scenario']")
+        if sum(options.get(k) is not None for k in ("scenario", "layout", "lot")) > 1:
+            raise ValueError("reset options: give one of 'scenario', 'layout' and 'lot'")
         layout = self._layout_from(options)
         params = layout.vehicle or self.default_params  # a scene's own car, else the config's
         if params != self.params:
@@ -178,6 +178,8 @@ class MirrorParkEnv(gym.Env):
         return obs, info
 
     def _layout_from(self, options: dict[str, Any]) -> Layout:
+        if options.get("lot") is not None:
+            return self._lot_from(options["lot"])
         spec = options.get("layout")
         if spec is None:
             sc = self._scenario_from(options.get("scenario"))
@@ -190,6 +192,23 @@ class MirrorParkEnv(gym.Env):
 
             return load_layout(spec)
         raise ValueError(f"reset options: 'layout' must be a Layout or a file path, got {type(spec).__name__}")
+
+    def _lot_from(self, spec) -> Layout:
+        """A generated lot (``lots.generate_lot``) for the config's car: ``{"level": L, "seed":
+        S}``, or a level alone (its seed drawn from the env's generator)."""
+        from .lots import LEVELS, generate_lot
+
+        if isinstance(spec, dict) and set(spec) <= {"level", "seed"} and "level" in spec:
+            level, seed = spec["level"], spec.get("seed")
+        elif not isinstance(spec, (dict, bool)) and spec in LEVELS:
+            level, seed = spec, None
+        else:
+            raise ValueError(
+                f"reset options: 'lot' must be a level in {LEVELS} or {{'level': L, 'seed': S}}, got {spec!r}"
+            )
+        if seed is None:
+            seed = int(self.np_random.integers(2**31))
+        return generate_lot(seed, level, self.default_params)
 
     def _scenario_from(self, spec: Scenario | str | None) -> Scenario:
         if isinstance(spec, Scenario):
