@@ -2,8 +2,11 @@
 
 Written by ``mirrorpark evaluate --layouts`` next to its results: ``layouts.md`` (success,
 parking time, switches, path length, planning time per layout and planner; a layout's
-slot and whether it is comfortable) and ``img/<layout>.png`` (the layout's obstacles,
-slot, start and target, and every planner's driven path).
+slot and whether it is comfortable), ``img/<layout>.png`` (the layout's obstacles,
+slot, start and target, and every planner's driven path) and
+``trajectories/<layout>-<planner>.csv``: the driven trajectory in TPCAP's form, one row per
+0.1 s step, ``t, x, y, theta`` (s, m, m, rad) of the rear axle in the file's own frame
+(a recentred layout's shift added back).
 """
 
 from __future__ import annotations
@@ -115,6 +118,20 @@ def draw_layout(layout: Layout, rows: pd.DataFrame, path: Path) -> Path:
     return path
 
 
+def write_trajectory(row: pd.Series, layout: Layout, path: Path) -> Path | None:
+    """The row's driven trajectory as TPCAP's four columns (t, x, y, theta) in the layout
+    file's frame; None for a row without one (an error)."""
+    t = row.get("path_t")
+    if not isinstance(t, (list, np.ndarray)) or not len(t):
+        return None
+    ox, oy = layout.origin
+    x, y = np.asarray(row["path_x"], float) + ox, np.asarray(row["path_y"], float) + oy
+    table = pd.DataFrame({"t": np.asarray(t, float), "x": x, "y": y, "theta": np.asarray(row["path_theta"], float)})
+    path.parent.mkdir(parents=True, exist_ok=True)
+    table.to_csv(path, index=False, float_format="%.6f")
+    return path
+
+
 def _file_stem(name: str, used: set[str]) -> str:
     """A file name for a layout's figure inside the report's folder, whatever its name holds
     (``../x``, ``a/b``, ``#``): letters, digits, ``.``, ``-`` and ``_`` only, unique among ``used``."""
@@ -146,8 +163,11 @@ def write_layout_report(df: pd.DataFrame, layouts: list[Layout], out: str | Path
     used: set[str] = set()
     for lay in layouts:
         rows = df[df["case_id"] == lay.name]
-        img = draw_layout(lay, rows, out / "img" / f"{_file_stem(lay.name, used)}.png")
+        stem = _file_stem(lay.name, used)
+        img = draw_layout(lay, rows, out / "img" / f"{stem}.png")
         lines.append(f"![{lay.name}](img/{img.name})")
+        for _, r in rows.iterrows():
+            write_trajectory(r, lay, out / "trajectories" / f"{stem}-{_file_stem(str(r['planner']), set())}.csv")
     path = out / "layouts.md"
     path.write_text("\n".join(lines) + "\n")
     return path

@@ -114,8 +114,9 @@ def unique(scenarios: Iterable[Scenario]) -> tuple[list[Scenario], int]:
 def run_case(planner: str, sc: Scenario | Layout, keep_stats: list | None = None) -> dict[str, Any]:
     """One episode of ``planner`` on a grid case or a layout; never raises (errors become rows).
 
-    A layout's row also holds the driven path (``path_x``, ``path_y``: the rear axle at
-    every step, in the layout's frame) for its figure. ``keep_stats``: a list that the
+    A layout's row also holds the driven path (``path_t``, ``path_x``, ``path_y``,
+    ``path_theta``: the rear axle at every step, in the layout's frame) for its figure and
+    its trajectory file. ``keep_stats``: a list that the
     policy's ``PlanStats`` of every call are appended to (the benchmark's breakdown)."""
     from planners.base import run_episode
 
@@ -131,8 +132,10 @@ def run_case(planner: str, sc: Scenario | Layout, keep_stats: list | None = None
         trace: list[dict] | None = [] if is_layout else None
         info, steps = run_episode(worker_env(), policy, sc, trace=trace)
         if trace is not None:
+            row["path_t"] = [round(float(i["parking_time"]), 6) for i in trace]
             row["path_x"] = [round(i["vehicle_state"].x, 4) for i in trace]
             row["path_y"] = [round(i["vehicle_state"].y, 4) for i in trace]
+            row["path_theta"] = [round(i["vehicle_state"].theta, 6) for i in trace]
         if keep_stats is not None:
             keep_stats.extend(policy.stats)
         times = [1e3 * s.wall_time_s for s in policy.stats]

@@ -91,8 +91,10 @@ COLUMNS: tuple[Column, ...] = (
     # Errors and what a layout's figure draws: kept in the run's folder, not exported.
     Column("error", "str", doc="the exception of a case that errored"),
     Column("traceback", "str", exported=False),
+    Column("path_t", "list[float]", "s", exported=False, doc="the time of each step of the path (layout rows)"),
     Column("path_x", "list[float]", "m", exported=False, doc="the rear axle at every step (layout rows)"),
     Column("path_y", "list[float]", "m", exported=False),
+    Column("path_theta", "list[float]", "rad", exported=False, doc="the heading at every step (layout rows)"),
 )
 
 BY_NAME: dict[str, Column] = {c.name: c for c in COLUMNS}

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+import pandas as pd
 import pytest
 from shapely.geometry import Point, Polygon
 from shapely.ops import unary_union
@@ -330,6 +331,13 @@ def test_evaluate_layouts_writes_rows_paths_and_report_and_resumes(tmp_path):
     assert all(len(x) == len(y) > 10 for x, y in zip(df["path_x"], df["path_y"]))
     report = (tmp_path / "r" / "layouts.md").read_text()
     assert "| per01 | mirror | reverse |" in report and (tmp_path / "r" / "img" / "per01.png").exists()
+    # The trajectory in TPCAP's four columns, in the file's frame: it starts at the file's start.
+    traj = pd.read_csv(tmp_path / "r" / "trajectories" / "per01-mirror.csv")
+    assert list(traj.columns) == ["t", "x", "y", "theta"] and traj["t"].iloc[0] == 0.0
+    assert np.allclose(np.diff(traj["t"]), 0.1, atol=1e-6)
+    x0, y0, th0 = (float(v) for v in (TPCAP / "per01.csv").read_text().split(",")[:3])
+    assert (traj["x"].iloc[0], traj["y"].iloc[0]) == pytest.approx((x0, y0), abs=1e-4)
+    assert math.cos(traj["theta"].iloc[0] - th0) == pytest.approx(1.0, abs=1e-9)
     assert main([*args, "--workers", "1", "--quiet"]) == 0  # resumes: nothing left to run
     again = read_results([tmp_path / "r"])
     assert len(again) == 2
