@@ -393,3 +393,24 @@ def test_a_join_to_v_s_way_turns_the_short_way_and_ends_on_the_way_s_pose():
     assert len(out) == 3
     np.testing.assert_allclose(out[:2, 2], [math.pi - 0.05 + 0.1 / 3, math.pi - 0.05 + 0.2 / 3], atol=1e-12)
     np.testing.assert_array_equal(out[-1], b)
+
+
+def test_v_covers_a_start_beyond_the_road_and_a_slot_shares_one_v_among_starts_inside_it():
+    """A start inside the road's box leaves V's box as it is (a slot's episodes share one V,
+    whichever start they have); a start beyond it (a lot's far aisle) widens the box to it."""
+    from dataclasses import replace
+
+    from mirrorpark_env.vehicle import VehicleState
+    from planners.mirror.cost_to_go import cost_to_go, lattice_box
+
+    g = Scenario.from_case_id("reverse_rw7.00_sl4.82_sw2.32_th+40_y3.00").build()
+    cfg = CostToGoConfig()
+    box = lattice_box(g, cfg)
+    other = replace(g, start=VehicleState(g.start.x - 2.0, g.start.y - 1.0, 0.3))
+    assert lattice_box(other, cfg) == box and cost_to_go(other, cfg) is cost_to_go(g, cfg)
+    x0, x1, y0, y1 = box
+    far = replace(g, start=VehicleState(x1 + 4.0, g.start.y, 0.0), bounds=(x0 - 20, x1 + 20, y0 - 5, y1 + 5))
+    fx0, fx1, fy0, fy1 = lattice_box(far, cfg)
+    assert fx1 == pytest.approx(x1 + 4.0 + cfg.start_margin) and (fx0, fy0, fy1) == pytest.approx((x0, y0, y1))
+    v = cost_to_go(far, cfg)
+    assert v is not cost_to_go(g, cfg) and math.isfinite(v.lookahead(np.array([x1 + 4.0, g.start.y, 0.0]), None))

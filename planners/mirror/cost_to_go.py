@@ -18,50 +18,17 @@ own optimised plans by plan cost plus V at their ends, and pulls each plan's end
 from __future__ import annotations
 
 import math
-from typing import Annotated
 
 import numpy as np
-from pydantic import Field
 
-from mirrorpark_env.config import StrictModel
 from mirrorpark_env.scenario import ScenarioGeometry
 
 from ..common.clearance import gap_kernel, gaps
 from ..common.path import arc
 from ..common.slot_cache import SlotCache
 from ..common.turns import turn_chains
+from .config import CostToGoConfig
 from .cost_to_go_search import _ahead, _between, _entry_rows, _first_gear, _search, _straight
-
-
-class CostToGoConfig(StrictModel):
-    """Lattice and prices of the cost to go (lengths in m)."""
-
-    xy_resolution: float = Field(0.15, gt=0.01, le=2)
-    headings: int = Field(72, ge=8, le=360)  # heading cells in a full turn
-    steer_fraction: float = Field(0.9, gt=0, le=1)  # moves turn at this fraction of the curvature limit
-    clearance: float = Field(0.05, ge=0, le=1)  # gap every lattice pose and move midpoint keeps
-    reverse_cost: float = Field(0.5, ge=0)  # extra per metre reversed
-    steer_cost: float = Field(0.05, ge=0)  # extra per metre at full lock: straight wins ties, no needless S-bends
-    switch_cost: float = Field(3.0, ge=0)  # per direction switch
-    margin: float = Field(10.0, gt=0, le=50)  # [m] along the road beyond the slot
-    start_margin: float = Field(3.0, ge=0, le=50)  # [m] the lattice reaches this far around the start
-    # Exact multi-point turns out of the slot from the target (arcs per turn, 0: none): V's
-    # sources besides the target, where a tight slot is finer than the lattice.
-    in_slot_arcs: int = Field(12, ge=0, le=100)
-    tail_step: float = Field(0.02, gt=0, le=1)  # [m] spacing of their poses (an arc ends where it would touch)
-    # Exact single-gear entries into the slot (straight, full-lock arc, straight, driven out
-    # from the target until they would touch, 0: none): V's sources near the slot, where the
-    # lattice's moves, a cell apart, reach the mouth only roughly (measured: V read twice the
-    # cost of a one-switch park from a pose 5 m from a reverse slot).
-    entry_length: float = Field(6.0, ge=0, le=20)  # [m] longest straight of an entry, either side of its arc
-    entry_step: float = Field(0.1, gt=0.01, le=1)  # [m] spacing of the entries' straights and arc samples
-    # Their arcs' curvatures, as fractions of the car's limit: each adds a family of poses
-    entry_steer: tuple[Annotated[float, Field(gt=0, le=1)], ...] = (0.9,)
-    # Near the target, where the cells are too coarse to rank poses: the pose error priced
-    # in metres of driving (per m, per rad), at most this much above V.
-    finish_position: float = Field(50.0, ge=0)
-    finish_heading: float = Field(30.0, ge=0)
-    finish_cap: float = Field(20.0, ge=0)
 
 
 class CostToGo:
@@ -82,15 +49,7 @@ class CostToGo:
         self.step = radius * self.dth  # a full-lock move turns one heading cell
         tx, ty, tth = (float(v) for v in geometry.target)
         self.origin = (tx, ty, tth)
-        slot = np.asarray(geometry.slot, float)
-        bx0, bx1, by0, by1 = geometry.bounds
-        x0 = max(bx0, slot[:, 0].min() - cfg.margin)
-        x1 = min(bx1, slot[:, 0].max() + cfg.margin)
-        y0 = max(by0, slot[:, 1].min() - 1.0)
-        y1 = min(by1, geometry.road_width + 1.0)
-        sx, sy, m = geometry.start.x, geometry.start.y, cfg.start_margin  # and the start (a lot's far aisle)
-        x0, x1 = min(x0, max(bx0, sx - m)), max(x1, min(bx1, sx + m))
-        y0, y1 = min(y0, max(by0, sy - m)), max(y1, min(by1, sy + m))
+        x0, x1, y0, y1 = lattice_box(geometry, cfg)
         self.i0 = math.floor((x0 - tx) / res)
         self.j0 = math.floor((y0 - ty) / res)
         self.nx = math.floor((x1 - tx) / res) - self.i0 + 1
@@ -440,10 +399,26 @@ class CostToGo:
         return float(gaps(self.g.checker, np.asarray(pose, float)[None, :3], all_axes=True)[0])
 
 
+def lattice_box(geometry: ScenarioGeometry, cfg: CostToGoConfig) -> tuple[float, float, float, float]:
+    """(x0, x1, y0, y1) V covers: the road beside the slot, ``margin`` beyond it along the
+    road, within the scene's bounds; where the start lies outside that (a lot's far aisle),
+    also the start and ``start_margin`` around it. Starts inside it share one box, so that
+    a slot's V is the same whichever of them an episode starts from."""
+    slot = np.asarray(geometry.slot, float)
+    bx0, bx1, by0, by1 = geometry.bounds
+    x0, x1 = max(bx0, slot[:, 0].min() - cfg.margin), min(bx1, slot[:, 0].max() + cfg.margin)
+    y0, y1 = max(by0, slot[:, 1].min() - 1.0), min(by1, geometry.road_width + 1.0)
+    sx, sy, m = geometry.start.x, geometry.start.y, cfg.start_margin
+    if not (x0 <= sx <= x1 and y0 <= sy <= y1):
+        x0, x1 = min(x0, max(bx0, sx - m)), max(x1, min(bx1, sx + m))
+        y0, y1 = min(y0, max(by0, sy - m)), max(y1, min(by1, sy + m))
+    return x0, x1, y0, y1
+
+
 _CACHE: SlotCache[CostToGo] = SlotCache(8)
 
 
 def cost_to_go(geometry: ScenarioGeometry, config: CostToGoConfig | None = None) -> CostToGo:
-    """A ``CostToGo`` shared by the episodes of one process in the same slot."""
+    """A ``CostToGo`` shared by the episodes of one process in the same slot (and lattice box)."""
     cfg = config or CostToGoConfig()
-    return _CACHE.get(geometry, cfg.model_dump_json(), lambda: CostToGo(geometry, cfg))
+    return _CACHE.get(geometry, (cfg.model_dump_json(), lattice_box(geometry, cfg)), lambda: CostToGo(geometry, cfg))
