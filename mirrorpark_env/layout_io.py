@@ -38,7 +38,7 @@ from pydantic import Field, model_validator
 from .config import StrictModel, VehicleConfig, validate
 from .layout import Layout, Slot
 from .slot_inference import infer_slot
-from .vehicle import VehicleParams, vehicle_name, vehicle_named
+from .vehicle import VEHICLES, VehicleParams, vehicle_name, vehicle_named
 
 SUFFIXES = (".yaml", ".yml", ".json", ".csv")
 
@@ -90,7 +90,7 @@ def vehicle_of(spec: str | VehicleConfig | None, folder: Path | None = None) -> 
         return None
     if isinstance(spec, VehicleConfig):
         return VehicleParams.from_config(spec)
-    if spec in ("paper", "tpcap") or folder is None or Path(spec).is_absolute():
+    if spec in VEHICLES or folder is None or Path(spec).is_absolute():
         return vehicle_named(spec)
     return vehicle_named(str(folder / spec))
 
@@ -154,20 +154,7 @@ def to_dict(layout: Layout) -> dict:
     if layout.road_width:
         d["road_width"] = layout.road_width
     if layout.vehicle is not None:
-        v = layout.vehicle
-        d["vehicle"] = vehicle_name(v) or {
-            "wheelbase": v.wheelbase,
-            "rear_overhang": v.rear_overhang,
-            "front_length": v.front_length,
-            "width": v.width,
-            "max_steer_rad": v.max_steer,
-            "accel_min": v.a_min,
-            "accel_max": v.a_max,
-            "speed_min": v.v_min,
-            "speed_max": v.v_max,
-            "tau_accel_s": v.tau_a,
-            "tau_steer_s": v.tau_delta,
-        }
+        d["vehicle"] = vehicle_name(layout.vehicle) or layout.vehicle.as_config()
     return d
 
 

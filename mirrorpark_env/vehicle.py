@@ -53,6 +53,23 @@ class VehicleParams:
             tau_delta=cfg.tau_steer_s,
         )
 
+    def as_config(self) -> dict[str, float]:
+        """The fields of ``VehicleConfig`` (``configs/vehicle.yaml``'s names): the inverse of
+        ``from_config``."""
+        return {
+            "wheelbase": self.wheelbase,
+            "rear_overhang": self.rear_overhang,
+            "front_length": self.front_length,
+            "width": self.width,
+            "max_steer_rad": self.max_steer,
+            "accel_min": self.a_min,
+            "accel_max": self.a_max,
+            "speed_min": self.v_min,
+            "speed_max": self.v_max,
+            "tau_accel_s": self.tau_a,
+            "tau_steer_s": self.tau_delta,
+        }
+
     @classmethod
     def table_ii(cls) -> VehicleParams:
         """The paper's car as shipped in ``configs/vehicle.yaml`` (read once)."""

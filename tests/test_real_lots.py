@@ -11,6 +11,7 @@ import pytest
 
 import mirrorpark_env  # noqa: F401
 from evaluation.cli import main
+from mirrorpark_env.config import VehicleConfig
 from mirrorpark_env.layout_io import load_layout, load_layouts
 from mirrorpark_env.slot_inference import infer_slot
 from mirrorpark_env.vehicle import VEHICLES, VehicleParams, footprint, vehicle_name, vehicle_named
@@ -226,3 +227,20 @@ def test_the_mirror_planner_parks_between_triangles_with_tpcaps_car(tmp_path):
     assert lay.vehicle == car and lay.slot.parking_type.value == "parallel"
     row = run_case("mirror", lay)
     assert row["success"] and not row["collision"], (row["failed_criterion"], row["planner_status"])
+
+
+def test_a_layout_with_a_car_of_its_own_reads_back_with_it(tmp_path):
+    from dataclasses import replace
+
+    from mirrorpark_env.layout_io import write_layout
+
+    van = VehicleParams.from_config(VehicleConfig(**{**P.as_config(), "width": 1.9}))
+    lay = load_layout(_write(tmp_path / "a.csv", _row(START, _target(P), [BEHIND, AHEAD, KERB])), P)
+    for car in (P, TPCAP_CAR, van):
+        back = load_layout(write_layout(replace(lay, vehicle=car), tmp_path / "b.json"))
+        assert back.vehicle == car
+
+
+def _write(path, text):
+    path.write_text(text)
+    return path

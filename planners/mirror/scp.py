@@ -184,8 +184,7 @@ class SCP:
         """The QP, or the MIQP (by ``miqp``) where there are disjunctions; effort counted into
         ``st`` and taken from the call's budget (None once that is spent)."""
         budget = self.core.budget
-        if budget.left <= 0:
-            st["budget_spent"] = True
+        if budget.spent:
             return None
         if disj:
             res = miqp.solve(qp, disj, active, preferred, max_solves=budget.left)
@@ -195,7 +194,6 @@ class SCP:
             st["safety_net"] = st.get("safety_net", False) or res.status == "time_limit"
             if res.status == "node_limit":
                 st["cut_short"] = True  # out of nodes: its optimum not proved, perhaps not found
-            st["budget_spent"] = st.get("budget_spent", False) or res.status == "budget"
             return res.x
         st["qp_solves"] += 1
         budget.spend(1)
