@@ -198,6 +198,20 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_check_planner(args: argparse.Namespace) -> int:
+    from .check_policy import check_policy
+    from .registry import make_policy
+
+    problems = check_policy(make_policy(args.planner), steps=args.steps)
+    if problems:
+        print(f"{args.planner}: {len(problems)} problem(s) with the Policy contract:", file=sys.stderr)
+        for p in problems:
+            print(f"  - {p}", file=sys.stderr)
+        return 1
+    print(f"{args.planner}: keeps the Policy contract ({args.steps} steps of a real case)")
+    return 0
+
+
 def _positive_int(text: str) -> int:
     try:
         n = int(text)
@@ -331,6 +345,11 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--env-steps", type=int, default=5000)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench)
+
+    k = sub.add_parser("check-planner", help="check that a planner keeps the Policy contract on a real case")
+    k.add_argument("planner", help="a planner name, package.module:factory, or rl:PATH")
+    k.add_argument("--steps", type=_positive_int, default=30)
+    k.set_defaults(func=cmd_check_planner)
 
     add_train_rl(sub, _positive_int)
     add_lots(sub, _positive_int)

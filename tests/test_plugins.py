@@ -1,0 +1,125 @@
+"""Plug-in planners: ``package.module:factory`` and the ``mirrorpark.planners`` entry points,
+one-line errors for each way a plug-in can be wrong, and ``check_policy``."""
+
+from __future__ import annotations
+
+import textwrap
+
+import pytest
+
+from evaluation import registry
+from evaluation.check_policy import check_policy
+from evaluation.cli import main
+from evaluation.registry import make_policy
+from planners.base import Policy
+
+PLUGIN = textwrap.dedent(
+    """
+    import numpy as np
+    from planners.base import Policy, PlanStats
+
+    class Creep(Policy):
+        name = "creep"
+
+        def reset(self, geometry):
+            self.stats = [PlanStats(0.0, "ok")]
+
+        def act(self, obs, info):
+            return np.array([-0.05, 0.0], dtype=np.float32)  # reverses slowly, straight
+
+    def make():
+        return Creep()
+
+    def broken():
+        raise RuntimeError("no licence server")
+
+    def not_a_policy():
+        return object()
+
+    class Wrong(Creep):
+        def act(self, obs, info):
+            return np.array([2.0, 0.0, 1.0])
+
+    def wrong():
+        return Wrong()
+    """
+)
+
+
+@pytest.fixture
+def plugin(tmp_path, monkeypatch):
+    (tmp_path / "myplug.py").write_text(PLUGIN)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))  # for workers started afresh
+    return "myplug"
+
+
+def test_a_factory_by_module_and_name_is_a_planner(plugin):
+    p = make_policy(f"{plugin}:make")
+    assert isinstance(p, Policy) and p.name == "creep"
+    assert check_policy(p) == []
+
+
+@pytest.mark.parametrize(
+    "name, message",
+    [
+        ("nosuch_mod:make", r"cannot import 'nosuch_mod' \(ModuleNotFoundError"),
+        ("myplug:absent", r"module 'myplug' has no callable 'absent'"),
+        ("myplug:broken", r"myplug:broken raised RuntimeError: no licence server"),
+        ("myplug:not_a_policy", r"returned a object, not a Policy \(missing: reset, act, stats, status, gave_up"),
+        (":make", r"a plug-in is named package.module:factory"),
+    ],
+)
+def test_every_way_a_plugin_is_wrong_is_one_line(plugin, name, message):
+    with pytest.raises(ValueError, match=message) as err:
+        make_policy(name)
+    assert "\n" not in str(err.value)
+
+
+def test_check_policy_names_what_breaks_the_contract(plugin):
+    problems = check_policy(make_policy(f"{plugin}:wrong"))
+    assert problems == ["act at step 0: the action has shape (3,), not (2,) [accel, steer]"]
+
+
+class _EntryPoint:
+    def __init__(self, name, value, target):
+        self.name, self.value, self._target = name, value, target
+
+    def load(self):
+        if isinstance(self._target, Exception):
+            raise self._target
+        return self._target
+
+
+def test_an_installed_packages_entry_point_adds_a_name(plugin, monkeypatch):
+    import myplug
+
+    eps = {
+        "creep": _EntryPoint("creep", "myplug:make", myplug.make),
+        "gone": _EntryPoint("gone", "oldpkg:make", ImportError("No module named 'oldpkg'")),
+    }
+    monkeypatch.setattr(registry, "_entry_points", lambda: eps)
+    assert "creep" in registry.available() and registry.available()[: len(registry.PLANNERS)] == list(registry.PLANNERS)
+    assert make_policy("creep").name == "creep"
+    with pytest.raises(ValueError, match=r"plug-in 'gone' \(oldpkg:make\) does not load \(ImportError"):
+        make_policy("gone")
+
+
+@pytest.mark.slow
+def test_a_plugin_runs_on_two_workers_and_the_cli_checks_it(plugin, tmp_path, capsys):
+    """Workers import the plug-in by its name, whatever their start method."""
+    from evaluation.store import read_results
+
+    out = tmp_path / "r"
+    args = ["evaluate", "--planner", f"{plugin}:make", "--sample", "smoke", "--chunk", "1/45", "--out", str(out)]
+    assert main([*args, "--workers", "2", "--quiet"]) == 0
+    df = read_results([out])
+    assert len(df) == 2 and (df["planner"] == f"{plugin}:make").all() and df["error"].isna().all()
+    assert main(["check-planner", f"{plugin}:wrong"]) == 1
+    assert "the action has shape (3,)" in capsys.readouterr().err
+    assert main(["check-planner", f"{plugin}:make"]) == 0
+
+
+def test_the_builtin_planners_keep_the_contract():
+    for name in ("guide-only", "mirror-guided"):
+        assert check_policy(make_policy(name), steps=10) == [], name
