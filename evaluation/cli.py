@@ -11,6 +11,7 @@ from pathlib import Path
 from mirrorpark_env.config import PARKING_TYPES
 
 from . import registry
+from .cli_compare import add_compare
 from .cli_lots import add_lots
 from .cli_rl import add_train_rl
 
@@ -353,6 +354,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_train_rl(sub, _positive_int)
     add_lots(sub, _positive_int)
+    add_compare(sub)
     return ap
 
 

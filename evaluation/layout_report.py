@@ -21,18 +21,13 @@ import pandas as pd
 from mirrorpark_env.layout import Layout
 from mirrorpark_env.vehicle import VehicleParams, footprint
 
+from .compare import markdown
 from .metrics import comfortable
 from .schema import with_every_column
 
 
 def _cell(v, fmt: str) -> str:
     return "–" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
-
-
-def _markdown(df: pd.DataFrame) -> list[str]:
-    rows = [" | ".join(df.columns), " | ".join("---" for _ in df.columns)]
-    rows += [" | ".join(str(v) for v in r) for r in df.itertuples(index=False)]
-    return [f"| {r} |" for r in rows]
 
 
 def layout_table(df: pd.DataFrame) -> pd.DataFrame:
@@ -159,7 +154,7 @@ def write_layout_report(df: pd.DataFrame, layouts: list[Layout], out: str | Path
         show["failure_cause"] = [v if isinstance(v, str) else "–" for v in show["failure_cause"]]
     if "plan_time_median_ms" in show:
         show["plan_time_median_ms"] = [_cell(v, ".1f") for v in show["plan_time_median_ms"]]
-    lines += [*_markdown(show), ""]
+    lines += [markdown(show), ""]
     used: set[str] = set()
     for lay in layouts:
         rows = df[df["case_id"] == lay.name]

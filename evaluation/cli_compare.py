@@ -1,0 +1,50 @@
+"""``mirrorpark compare``: runs on the same cases side by side, with intervals (``compare.py``)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_compare(sub) -> None:
+    c = sub.add_parser(
+        "compare", help="several runs on their common cases: rates with 95 %% intervals, paired differences"
+    )
+    c.add_argument("runs", nargs="+", help="results folders or exported tables (each planner in them is a run)")
+    c.add_argument("--reference", default=None, help="the run the others are paired against (default: the first)")
+    c.add_argument("--out", default=None, help="folder for compare.md and compare.csv (default: print only)")
+    c.set_defaults(func=cmd_compare)
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from .compare import markdown, paired_table, run_table
+    from .store import read_results
+
+    found = [
+        (planner, path, rows)
+        for path in args.runs
+        for planner, rows in read_results([path]).groupby("planner", sort=False)
+    ]
+    if not found:
+        raise ValueError("runs: no rows in the runs given")
+    planners = [p for p, _, _ in found]
+    # A planner in several runs is named by its run too.
+    runs = {(p if planners.count(p) == 1 else f"{p} ({path})"): rows for p, path, rows in found}
+    common = set.intersection(*(set(r["case_id"]) for r in runs.values()))
+    if not common:
+        raise ValueError("runs: no case is common to all of them")
+    runs = {k: r[r["case_id"].isin(common)] for k, r in runs.items()}
+    reference = args.reference or next(iter(runs))
+    if reference not in runs:
+        raise ValueError(f"--reference: one of {', '.join(runs)}, got {reference!r}")
+    table, paired = run_table(runs), paired_table(runs, reference)
+    text = f"# {len(runs)} runs on {len(common)} common cases\n\n{markdown(table)}\n"
+    if len(paired):
+        text += f"\nAgainst `{reference}`, paired by case:\n\n{markdown(paired)}\n"
+    print(text)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "compare.md").write_text(text)
+        table.merge(paired, on="run", how="left").to_csv(out / "compare.csv", index=False)
+    return 0
