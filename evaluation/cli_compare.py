@@ -12,12 +12,12 @@ def add_compare(sub) -> None:
     )
     c.add_argument("runs", nargs="+", help="results folders or exported tables (each planner in them is a run)")
     c.add_argument("--reference", default=None, help="the run the others are paired against (default: the first)")
-    c.add_argument("--out", default=None, help="folder for compare.md and compare.csv (default: print only)")
+    c.add_argument("--out", default=None, help="folder for compare.md, .csv and .png (default: print only)")
     c.set_defaults(func=cmd_compare)
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from .compare import markdown, paired_table, run_table
+    from .compare import markdown, paired_table, run_table, success_figure
     from .store import read_results
 
     found = [
@@ -47,4 +47,5 @@ def cmd_compare(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
         (out / "compare.md").write_text(text)
         table.merge(paired, on="run", how="left").to_csv(out / "compare.csv", index=False)
+        success_figure(runs, out / "compare.png")
     return 0

@@ -119,3 +119,32 @@ def markdown(df: pd.DataFrame) -> str:
     lines = ["| " + " | ".join(df.columns) + " |", "|" + "---|" * len(df.columns)]
     lines += ["| " + " | ".join(str(v) for v in r) + " |" for r in df.itertuples(index=False)]
     return "\n".join(lines)
+
+
+def success_figure(runs: dict[str, pd.DataFrame], path) -> None:
+    """Success per parking type and run, with 95 % Wilson intervals, to ``path`` (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    types = ["parallel", "reverse", "angle"]
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    width = 0.8 / max(len(runs), 1)
+    for j, (name, df) in enumerate(runs.items()):
+        rates, lows, highs = [], [], []
+        for t in types:
+            ok = df.loc[df["parking_type"] == t, "success"].fillna(False).astype(bool)
+            lo, hi = wilson(int(ok.sum()), len(ok))
+            rate = ok.mean() if len(ok) else math.nan
+            rates.append(100 * rate)
+            lows.append(100 * (rate - lo) if len(ok) else 0.0)
+            highs.append(100 * (hi - rate) if len(ok) else 0.0)
+        x = np.arange(len(types)) + (j - (len(runs) - 1) / 2) * width
+        ax.bar(x, rates, width, yerr=[lows, highs], capsize=3, label=name)
+    ax.set_xticks(np.arange(len(types)), types)
+    ax.set_ylabel("success [%] (95 % Wilson interval)")
+    ax.set_ylim(0, 100)
+    ax.legend(fontsize=7)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)

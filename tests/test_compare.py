@@ -61,4 +61,5 @@ def test_the_cli_compares_two_runs_on_their_common_cases(tmp_path, capsys):
     assert "# 2 runs on 3 common cases" in text and "Against `guide-only`, paired by case" in text
     assert (out / "compare.md").read_text() == text.rstrip("\n") + "\n"
     assert list(pd.read_csv(out / "compare.csv")["run"]) == ["guide-only", "hybrid-astar"]
+    assert (out / "compare.png").stat().st_size > 1000  # success per type with its intervals
     assert main(["compare", str(tmp_path / "guide-only"), "--reference", "nope"]) == 2
