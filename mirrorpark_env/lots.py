@@ -83,7 +83,7 @@ def _neighbour(rng: np.random.Generator, level: int, x0: float, x1: float, y0: f
     """A parked car filling the box, or at level 3 and up sometimes an irregular outline in it."""
     shape = rng.choice(["box", "triangle", "notch", "ell"]) if level >= 3 and rng.random() < 0.4 else "box"
     xm, ym = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
-    if shape == "triangle":  # its apex toward the slot's side is decided by the caller's box
+    if shape == "triangle":  # its apex at the box's middle, on one end or the other at random
         return (
             np.array([(x0, y0), (x1, ym), (x0, y1)]) if rng.random() < 0.5 else np.array([(x1, y0), (x1, y1), (x0, ym)])
         )
