@@ -40,24 +40,35 @@ class HybridAStarConfig(StrictModel):
 
     xy_resolution: float = Field(0.1, gt=0, le=5)
     heading_resolution_deg: float = Field(5.0, gt=0, le=90)
+    # Where the car is tight (closer than ``fine_gap`` to an obstacle) cells are finer: the
+    # short shuffles of a tight manoeuvre turn the car by a degree or two each, and cells of
+    # 5 deg would close every one of them as a state already seen.
+    fine_gap: float = Field(0.15, ge=0, le=5)  # 0: coarse cells everywhere
+    fine_xy_resolution: float = Field(0.1, gt=0, le=5)
+    fine_heading_resolution_deg: float = Field(1.0, gt=0, le=90)
     step: float = Field(0.4, gt=0, le=5)  # arc length of one motion primitive
     min_step: float = Field(0.1, gt=0, le=5)  # shortest primitive left after cutting one short at an obstacle
     n_steer: int = Field(5, ge=1, le=99)  # steering angles per direction, odd (straight included)
     steer_fraction: float = Field(0.9, gt=0, le=1)  # plan curvature to this fraction of the car's limit
     sample_step: float = Field(0.05, gt=0, le=1)  # pose spacing of the collision checks
     clearance: float = Field(0.05, ge=0, le=1)  # gap kept to every obstacle, for tracking error
+    # Near a start closer than that gap: within ``start_relief`` of it, keep this share of the
+    # start's gap (the stopping check keeps half of it too): a car parked along a wall must
+    # turn away from it, and its far corner first swings closer.
+    start_relief: float = Field(2.5, gt=0, le=10)
+    start_gap_share: float = Field(0.5, ge=0.5, le=1)
     reverse_cost: float = Field(1.5, ge=0)  # per metre reversed (forward: 1)
     switch_cost: float = Field(2.0, ge=0)  # per direction switch
     steer_cost: float = Field(0.2, ge=0)  # per metre, times |steer| / max steer
     steer_change_cost: float = Field(0.5, ge=0)  # per change of steering between primitives, times |change| / max
-    heuristic_weight: float = Field(1.5, ge=1, le=100)
+    heuristic_weight: float = Field(2.0, ge=1, le=100)  # > 1: greedy, not optimal (docs/hybrid_astar.md)
     analytic_every: int = Field(2, ge=1)  # try a Reeds-Shepp connection every k-th expansion
     backward_share: float = Field(0.5, ge=0, le=1)  # of the budget, for the search out of the slot
     grid_resolution: float = Field(0.25, gt=0, le=5)
     goal_margin: float = Field(0.05, ge=0, le=1)  # ISO margins plus this, for the goal set
     goal_heading_deg: float = Field(2.0, ge=0, le=45)
     window_margin: float = Field(10.0, gt=0, le=100)  # search window beyond the slot and start
-    max_expansions: int = Field(10_000, ge=1)  # the budget, in work: node expansions per call (~3 s here)
+    max_expansions: int = Field(9_000, ge=1)  # the budget, in work: node expansions per call (~1 s here)
     wall_clock_limit_s: float = Field(120.0, gt=0, le=3600)  # a safety net only; a call where it fires says so
 
     @model_validator(mode="after")
@@ -79,6 +90,7 @@ class _Node:
     gear: int  # 0 at the start
     steer: float  # normalised, in [-1, 1]
     samples: np.ndarray | None  # poses from the parent (excluded) to this node (included)
+    key: tuple[int, ...]  # the cell that closes it
 
 
 class HybridAStar:
@@ -101,9 +113,12 @@ class HybridAStar:
         self.required_gap = cfg.clearance + self.sweep_bound
         self.th_res = math.radians(cfg.heading_resolution_deg)
         self.n_th = int(round(2 * math.pi / self.th_res))
+        self.fine_th_res = math.radians(cfg.fine_heading_resolution_deg)
+        self.n_fine_th = int(round(2 * math.pi / self.fine_th_res))
         self.goal_heading = math.radians(cfg.goal_heading_deg)
         self._primitives = self._make_primitives()
         self._grids: dict[tuple, GridDistance] = {}
+        self.last_trees: list[tuple[bool, list[_Node]]] = []  # (backward, nodes) of the last call's searches
         # The slot's centre has the largest margins a pose in it can have: if the ISO check
         # fails there, no pose in the slot passes (a slot narrower than the car plus margins).
         self.goal_exists = self.criteria.verdict(*self.goal, 0.0, 0.0, False).failed is None
@@ -141,7 +156,9 @@ class HybridAStar:
         """Gap each sampled pose must keep: ``required_gap``, relieved within ``START_RELIEF``
         of a start that is closer (``common.clearance``; grid starts may touch the road's
         edges, and the car must be able to leave them)."""
-        return required_gap(poses, self._start, self._start_gap, self.required_gap)
+        cfg = self.cfg
+        floor = cfg.start_gap_share * self._start_gap if cfg.start_gap_share < 1 else math.inf
+        return required_gap(poses, self._start, self._start_gap, self.required_gap, cfg.start_relief, floor)
 
     def in_goal_set(self, pose) -> bool:
         """ISO success at ``pose`` (standing still), with ``goal_margin`` and heading to spare."""
@@ -175,12 +192,18 @@ class HybridAStar:
         sb = g.bounds
         return (max(sb[0], lo[0]), min(sb[1], hi[0]), max(sb[2], lo[1]), min(sb[3], hi[1]))
 
-    def _key(self, pose) -> tuple[int, int, int]:
-        r = self.cfg.xy_resolution
+    def _key(self, pose, gap: float) -> tuple[int, int, int, int]:
+        """The cell of ``pose``: coarse, or fine where its gap to the nearest obstacle is
+        below ``fine_gap`` (the first entry tells the two apart)."""
+        if gap < self.cfg.fine_gap:
+            r, th_res, n_th, level = self.cfg.fine_xy_resolution, self.fine_th_res, self.n_fine_th, 1
+        else:
+            r, th_res, n_th, level = self.cfg.xy_resolution, self.th_res, self.n_th, 0
         return (
+            level,
             int(math.floor(pose[0] / r)),
             int(math.floor(pose[1] / r)),
-            int(math.floor(pose[2] / self.th_res + 0.5)) % self.n_th,
+            int(math.floor(pose[2] / th_res + 0.5)) % n_th,
         )
 
     def _grid(self, goal) -> GridDistance:
@@ -209,6 +232,7 @@ class HybridAStar:
         start = tuple(float(v) for v in start)
         self.window = self._window(start)
         counts = {"expansions": 0, "nodes": 0}
+        self.last_trees = []
 
         def done(path: Path | None, status: str, cost: float = math.nan, direction: str = ""):
             detail = {
@@ -258,10 +282,12 @@ class HybridAStar:
         def h(pose) -> float:
             return cfg.heuristic_weight * max(self.rs.distance(pose, goal), grid(pose[0], pose[1]))
 
-        nodes: list[_Node] = [_Node(origin, 0.0, -1, 0, 0.0, None)]
+        origin_key = self._key(origin, float(self._gaps(np.array([origin]))[0]))
+        nodes: list[_Node] = [_Node(origin, 0.0, -1, 0, 0.0, None, origin_key)]
+        self.last_trees.append((backward, nodes))
         open_heap = [(h(origin), 0, 0)]
-        best_g = {self._key(origin): 0.0}
-        closed: set[tuple[int, int, int]] = set()
+        best_g = {origin_key: 0.0}
+        closed: set[tuple[int, ...]] = set()
         offsets, gears, steers = self._primitives
         status = "no_path"
         while open_heap:
@@ -273,7 +299,7 @@ class HybridAStar:
                 break
             _, _, i = heapq.heappop(open_heap)
             node = nodes[i]
-            key = self._key(node.pose)
+            key = node.key
             if key in closed:
                 continue
             closed.add(key)
@@ -294,15 +320,17 @@ class HybridAStar:
             wt = th + offsets[..., 2]
             poses = np.stack((wx, wy, wt), axis=-1)  # (P, m, 3)
             flat = poses.reshape(-1, 3)
-            ok = (self._gaps(flat) >= self._required(flat)) & self._in_window(flat)
+            gap = self._gaps(flat)
+            ok = (gap >= self._required(flat)) & self._in_window(flat)
             ok = ok.reshape(poses.shape[:2])
+            gap = gap.reshape(poses.shape[:2])
             # A primitive that runs into an obstacle is cut short at its last clear sample
             # (when it still covers min_step): the short moves of a tight manoeuvre.
             n_clear = np.where(ok.all(axis=1), ok.shape[1], ok.argmin(axis=1))
             for p in np.flatnonzero(n_clear >= self.min_samples):
                 k = int(n_clear[p])
                 end = poses[p, k - 1]
-                child_key = self._key(end)
+                child_key = self._key(end, float(gap[p, k - 1]))
                 if child_key in closed:
                     continue
                 gear = int(gears[p])
@@ -320,7 +348,7 @@ class HybridAStar:
                 if not math.isfinite(hv):
                     continue
                 best_g[child_key] = g
-                nodes.append(_Node(pose, g, i, gear, float(steers[p]), poses[p, :k]))
+                nodes.append(_Node(pose, g, i, gear, float(steers[p]), poses[p, :k], child_key))
                 heapq.heappush(open_heap, (g + hv, len(nodes) - 1, len(nodes) - 1))
         counts["nodes"] += len(nodes)
         return None, status, math.nan

@@ -1,11 +1,12 @@
-"""Run a mirror planner preset with some settings changed over a sample, one process, and export its rows.
+"""Run a planner preset with some settings changed over a sample, one process, and export its rows.
 
-    python scripts/mirror_variant.py --set retry_nodes=30 [--set KEY=JSON ...] [--preset mirror] \
+    python scripts/variant.py --set retry_nodes=30 [--set KEY=JSON ...] [--preset mirror] \
         [--name mirror-variant] [--sample smoke] [--every 1] [--start 0] [--out results/variants]
     mirrorpark diff --before BASELINE.parquet --after results/variants/mirror-variant.parquet
 
-Each ``--set`` overrides one field of the preset's core or strategy config
-(``planners/mirror/config.py``; the value read as JSON: numbers, true/false, lists),
+Each ``--set`` overrides one field of the preset's config (the mirror presets: their core or
+strategy config, ``planners/mirror/config.py``; ``hybrid-astar``: ``HybridAStarConfig``; the
+value read as JSON: numbers, true/false, lists),
 checked by the config's own validation. The rows go to ``OUT/<name>.parquet`` as ``mirrorpark evaluate --export``
 writes them, so that ``mirrorpark diff`` compares them with a run of the default (run the
 default the same way, ``--name mirror`` and no ``--set``, at the same time for paired
@@ -17,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 
+import numpy as np
 import pandas as pd
 from pydantic import ValidationError
 
@@ -30,10 +32,22 @@ PRESETS = {"mirror": "mirror_config", "mirror-cold": "cold_config", "mirror-guid
 PRESETS |= {"mirror-multistart": "multistart_config", "mirror-paper": "paper_config"}
 
 
+def _policy_factory(preset: str, over: dict):
+    """A factory of ``preset``'s policy with ``over`` set (validated here, by field name)."""
+    if preset == "hybrid-astar":
+        from planners.hybrid_astar.policy import HybridAStarPolicy
+        from planners.hybrid_astar.search import HybridAStarConfig
+
+        cfg = HybridAStarConfig(**over)
+        return lambda: HybridAStarPolicy(cfg)
+    cfg = getattr(config, PRESETS[preset])(**over)
+    return lambda: registry.mirror_policy(cfg)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON", help="a config field to override")
-    ap.add_argument("--preset", default="mirror", choices=sorted(PRESETS))
+    ap.add_argument("--preset", default="mirror", choices=sorted([*PRESETS, "hybrid-astar"]))
     ap.add_argument("--name", default="mirror-variant")
     ap.add_argument("--sample", default="smoke", choices=("smoke", "standard"))
     ap.add_argument("--every", type=int, default=1, help="every n-th case of the sample (sorted by slot)")
@@ -47,21 +61,26 @@ def main() -> None:
             raise SystemExit(f"--set: expected KEY=JSON, got {item!r}")
         over[key] = json.loads(value)
     try:
-        cfg = getattr(config, PRESETS[a.preset])(**over)  # unknown fields and bad values fail here, by name
+        factory = _policy_factory(a.preset, over)  # unknown fields and bad values fail here, by name
     except ValidationError as err:
         raise SystemExit(f"--set: {err.errors()[0]['loc'][-1]}: {err.errors()[0]['msg']}") from None
     except ValueError as err:
         raise SystemExit(f"--set: {err}") from None
 
-    registry.PLANNERS[a.name] = lambda: registry.mirror_policy(cfg)
+    registry.PLANNERS[a.name] = factory
     cases = from_sample(a.sample)
     if a.every > 1 or a.start:
         cases = sorted(cases, key=slot_of)[a.start :: a.every]
     df = pd.DataFrame([run_case(a.name, sc) for sc in cases])
     path = export_table(df, a.out, a.name)
-    solves = int(sum(sum(q) for q in df["plan_qp_solves"] if q is not None))
+    work = "plan_iterations" if a.preset == "hybrid-astar" else "plan_qp_solves"
+    spent = int(sum(sum(q) for q in df[work] if q is not None))
     calls = int(df["planning_calls"].sum())
-    print(f"{a.name} {over}: {df['success'].mean():.1%} parked, {calls} calls, {solves} QP solves")
+    times = np.concatenate([np.asarray(t, float) for t in df["plan_times_ms"] if t is not None and len(t)])
+    print(
+        f"{a.name} {over}: {df['success'].mean():.1%} parked, {calls} calls, {spent} {work[5:]}, "
+        f"call ms median {np.median(times):.1f} mean {times.mean():.1f} p95 {np.percentile(times, 95):.1f}"
+    )
     print(f"wrote {path}")
 
 
