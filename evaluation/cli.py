@@ -12,6 +12,7 @@ from mirrorpark_env.config import PARKING_TYPES
 
 from . import registry
 from .cli_compare import add_compare
+from .cli_export import add_export
 from .cli_lots import add_lots
 from .cli_rl import add_train_rl
 
@@ -82,6 +83,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         ray_address=args.address,
         progress=not args.quiet,
         mixed_code=args.mixed_code,
+        trajectories=args.trajectories,
     )
     df = read_results([out])
     ids = {sc.case_id for sc in scenarios}
@@ -300,6 +302,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="folder for the run's compact table (the report's columns, Parquet): "
         "<planner>[-chunkK-of-N].parquet, a file small enough to commit",
     )
+    e.add_argument(
+        "--trajectories",
+        action="store_true",
+        help="keep each episode's states and commands (for `mirrorpark export --trajectories`; layouts always)",
+    )
     e.add_argument("--backend", default="local", choices=["local", "ray"])
     e.add_argument("--address", default=None, help="Ray cluster address (default: start a local Ray)")
     e.add_argument("--out", default=None, help="results folder (default: results/<planner>-<sample>)")
@@ -355,6 +362,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_train_rl(sub, _positive_int)
     add_lots(sub, _positive_int)
     add_compare(sub)
+    add_export(sub)
     return ap
 
 

@@ -24,6 +24,7 @@ from mirrorpark_env.vehicle import VehicleParams, footprint
 from .compare import markdown
 from .metrics import comfortable
 from .schema import with_every_column
+from .trajectories import tpcap_table
 
 
 def _cell(v, fmt: str) -> str:
@@ -119,11 +120,8 @@ def write_trajectory(row: pd.Series, layout: Layout, path: Path) -> Path | None:
     t = row.get("path_t")
     if not isinstance(t, (list, np.ndarray)) or not len(t):
         return None
-    ox, oy = layout.origin
-    x, y = np.asarray(row["path_x"], float) + ox, np.asarray(row["path_y"], float) + oy
-    table = pd.DataFrame({"t": np.asarray(t, float), "x": x, "y": y, "theta": np.asarray(row["path_theta"], float)})
     path.parent.mkdir(parents=True, exist_ok=True)
-    table.to_csv(path, index=False, float_format="%.6f")
+    tpcap_table(row, layout.origin).to_csv(path, index=False, float_format="%.6f")
     return path
 
 

@@ -109,6 +109,7 @@ ROW_MODULES = (
     "mirrorpark_env",
     "planners",
     "evaluation.runner",
+    "evaluation.episode",
     "evaluation.registry",
     "evaluation.causes",
     "evaluation.cases",

@@ -7,85 +7,20 @@ Rows are appended to the store as they finish; a rerun over the same folder resu
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 import queue
 import sys
-import time
-import traceback
 from collections.abc import Callable, Hashable, Iterable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from mirrorpark_env.criteria import iso_pose_exists
 from mirrorpark_env.layout import Layout
 from mirrorpark_env.scenario import Scenario
-from mirrorpark_env.vehicle import VehicleParams, vehicle_name
 
-from .causes import episode_cause
-from .provenance import current_id
-from .schema import MARGINS
+from .episode import run_case, worker_env
 from .store import ResultStore, locked
 
-_ENV = None  # one environment per worker process
-
-
-def worker_env():
-    global _ENV
-    if _ENV is None:
-        import gymnasium as gym
-
-        import mirrorpark_env  # noqa: F401
-
-        _ENV = gym.make("MirrorPark-v0")  # with its TimeLimit: episodes end at 180 s
-    return _ENV
-
-
-def case_fields(sc: Scenario) -> dict[str, Any]:
-    """The case's own values, as run (the id is only its name)."""
-    return {
-        "case_id": sc.case_id,
-        "parking_type": sc.parking_type.value,
-        "road_width": sc.road_width,
-        "slot_length": sc.slot_length,
-        "slot_width": sc.slot_width,
-        "theta0_deg": round(sc.theta0_deg, 9),
-        "y0": sc.y0,
-        "y1": round(sc.road_width - sc.y0, 9),  # distance from the rear axle to the road boundary
-        "start_x_offset": sc.start_x_offset,
-    }
-
-
-def layout_fields(lay: Layout) -> dict[str, Any]:
-    """A layout's row fields: its name, slot and start (the grid's columns where they apply)."""
-    s = lay.slot
-    return {
-        "case_id": lay.name,
-        "layout": lay.name,
-        "vehicle": "paper" if lay.vehicle is None else (vehicle_name(lay.vehicle) or "custom"),
-        "parking_type": s.parking_type.value if s is not None else "none",
-        "road_width": lay.road_width,
-        "slot_length": s.length if s is not None else math.nan,
-        "slot_width": s.width if s is not None else math.nan,
-        "theta0_deg": round(math.degrees(lay.start[2]), 9),
-        "y0": math.nan,
-        "y1": math.nan,
-        "start_x_offset": math.nan,
-    }
-
-
-def _feasible(case: Scenario | Layout) -> bool:
-    """Whether the case's slot admits an ISO pose (a layout without a slot: always)."""
-    if isinstance(case, Layout):
-        if case.slot is None:
-            return True
-        ptype, sl, sw = case.slot.parking_type, case.slot.length, case.slot.width
-    else:
-        ptype, sl, sw = case.parking_type, case.slot_length, case.slot_width
-    car = case.vehicle if isinstance(case, Layout) and case.vehicle is not None else VehicleParams.table_ii()
-    return bool(iso_pose_exists(ptype.value, sl, sw, car))
+__all__ = ["evaluate", "run_case", "run_parallel", "slot_of", "unique", "worker_env"]
 
 
 def unique(scenarios: Iterable[Scenario]) -> tuple[list[Scenario], int]:
@@ -111,83 +46,9 @@ def unique(scenarios: Iterable[Scenario]) -> tuple[list[Scenario], int]:
     return out, n_in - len(out)
 
 
-def run_case(planner: str, sc: Scenario | Layout, keep_stats: list | None = None) -> dict[str, Any]:
-    """One episode of ``planner`` on a grid case or a layout; never raises (errors become rows).
-
-    A layout's row also holds the driven path (``path_t``, ``path_x``, ``path_y``,
-    ``path_theta``: the rear axle at every step, in the layout's frame) for its figure and
-    its trajectory file. ``keep_stats``: a list that the
-    policy's ``PlanStats`` of every call are appended to (the benchmark's breakdown)."""
-    from planners.base import run_episode
-
-    from .registry import make_policy
-
-    t0 = time.perf_counter()
-    row: dict[str, Any] = {"planner": planner}
-    info = None
-    try:
-        is_layout = isinstance(sc, Layout)
-        row.update(layout_fields(sc) if is_layout else case_fields(sc))
-        policy = make_policy(planner)
-        trace: list[dict] | None = [] if is_layout else None
-        info, steps = run_episode(worker_env(), policy, sc, trace=trace)
-        if trace is not None:
-            row["path_t"] = [round(float(i["parking_time"]), 6) for i in trace]
-            row["path_x"] = [round(i["vehicle_state"].x, 4) for i in trace]
-            row["path_y"] = [round(i["vehicle_state"].y, 4) for i in trace]
-            row["path_theta"] = [round(i["vehicle_state"].theta, 6) for i in trace]
-        if keep_stats is not None:
-            keep_stats.extend(policy.stats)
-        times = [1e3 * s.wall_time_s for s in policy.stats]
-        row.update(
-            success=bool(info["is_success"]),
-            failed_criterion=info["failed_criterion"],
-            collision=bool(info["collision"]),
-            heading_error_deg=float(info["heading_error_deg"]),
-            switches=int(info["direction_switches"]),
-            parking_time_s=float(info["parking_time"]),
-            path_length_m=float(info["path_length"]),
-            steps=steps,
-            planning_calls=len(times),
-            plan_time_median_ms=float(np.median(times)) if times else math.nan,
-            plan_time_max_ms=float(np.max(times)) if times else math.nan,
-            plan_times_ms=[round(t, 3) for t in times],
-            # Work per call, which (unlike time) any machine repeats: iterations (SCP rounds,
-            # search expansions), QP solves, nodes (branch and bound, search).
-            plan_iterations=[int(s.iterations) for s in policy.stats],
-            plan_qp_solves=[int(s.qp_solves) for s in policy.stats],
-            plan_nodes=[int(s.nodes) for s in policy.stats],
-            safety_net_calls=sum(bool(s.detail.get("safety_net")) for s in policy.stats),
-            setup_ms=1e3 * float(getattr(policy, "setup_time_s", 0.0)),
-            planner_status=policy.status,
-            error=None,
-            inside_slot=bool(info["inside_slot"]),
-            min_clearance_m=float(info["min_clearance"]),
-            speed_at_min_clearance=float(info["speed_at_min_clearance"]),
-            min_clearance_away_m=float(info["min_clearance_away"]),
-            speed_at_min_clearance_away=float(info["speed_at_min_clearance_away"]),
-        )
-        for m in MARGINS:
-            row[m] = float(info["margins"].get(m, math.nan))
-    except Exception as err:  # noqa: BLE001  (any failure of one case must not stop the run)
-        row.update(
-            success=False,
-            failed_criterion="error",
-            planner_status="error",
-            error=f"{type(err).__name__}: {err}",
-            traceback=traceback.format_exc(limit=5),
-        )
-    feasible = _feasible(sc)
-    row["feasible"] = feasible
-    ended = None if row.get("planner_status") == "error" else info
-    row["failure_cause"], row["failure_amount"] = episode_cause(ended, feasible)
-    row["episode_wall_s"] = time.perf_counter() - t0
-    row["environment"] = current_id()  # the machine and packages (``environment.jsonl``)
-    return row
-
-
-def _run_case_tuple(args: tuple[str, Scenario]) -> dict[str, Any]:
-    return run_case(*args)
+def _run_case_tuple(args: tuple[str, Scenario, bool]) -> dict[str, Any]:
+    planner, sc, trajectory = args
+    return run_case(planner, sc, trajectory=trajectory)
 
 
 def evaluate(
@@ -199,10 +60,12 @@ def evaluate(
     ray_address: str | None = None,
     progress: bool = True,
     mixed_code: bool = False,
+    trajectories: bool = False,
 ) -> ResultStore:
     """Run ``planner`` over ``scenarios`` into the store at ``out``; resume where it stopped,
     if its rows of ``planner`` came from this code (``provenance.check_resume``; ``mixed_code``:
-    whatever code they came from)."""
+    whatever code they came from). ``trajectories``: rows keep the driven trajectory (layout
+    rows always do)."""
     from .registry import make_policy
 
     make_policy(planner)  # an unknown planner fails now, not in every worker
@@ -213,7 +76,7 @@ def evaluate(
         raise ValueError(f"workers: must be >= 1, got {workers}")
     store = ResultStore(out)
     with locked(store.folder):  # one run per results folder at a time
-        _run_into(store, planner, scenarios, workers, backend, ray_address, progress, mixed_code)
+        _run_into(store, planner, scenarios, workers, backend, ray_address, progress, mixed_code, trajectories)
     return store
 
 
@@ -226,6 +89,7 @@ def _run_into(
     ray_address: str | None,
     progress: bool,
     mixed_code: bool,
+    trajectories: bool = False,
 ) -> None:
     """``evaluate``'s run, the folder locked: the cases not yet stored, their rows appended."""
     from .provenance import check_resume
@@ -246,12 +110,12 @@ def _run_into(
 
     try:
         if backend == "ray":
-            _run_ray(planner, todo, keep, ray_address, workers)
+            _run_ray(planner, todo, keep, ray_address, workers, trajectories)
         elif min(workers, len(todo)) <= 1:  # no processes to start for one case
             for sc in todo:
-                keep(run_case(planner, sc))
+                keep(run_case(planner, sc, trajectory=trajectories))
         else:
-            items = [(planner, sc) for sc in todo]
+            items = [(planner, sc, trajectories) for sc in todo]
             run_parallel(_run_case_tuple, items, keep, workers, group=lambda it: slot_of(it[1]))
     except KeyboardInterrupt:
         bar.close()
@@ -406,7 +270,9 @@ def _init_worker(extra: dict, results=None) -> None:
     _RESULTS = results
 
 
-def _run_ray(planner: str, todo: list[Scenario], keep, address: str | None, workers: int) -> None:
+def _run_ray(
+    planner: str, todo: list[Scenario], keep, address: str | None, workers: int, trajectories: bool = False
+) -> None:
     try:
         import ray
     except ImportError:
@@ -427,7 +293,7 @@ def _run_ray(planner: str, todo: list[Scenario], keep, address: str | None, work
             keep(ray.get(ref))
 
     for sc in todo:  # a few tasks in flight per CPU; one new task per finished one
-        pending.append(task.remote(planner, sc))
+        pending.append(task.remote(planner, sc, trajectory=trajectories))
         if len(pending) >= limit:
             collect()
     while pending:

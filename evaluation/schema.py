@@ -1,7 +1,7 @@
 """Every column of a result row, declared once: its type, unit, export rounding, whether it is
 exported, and whether a machine decides it.
 
-``runner.run_case`` writes rows of these columns (tests/test_schema.py fails on any other);
+``episode.run_case`` writes rows of these columns (tests/test_schema.py fails on any other);
 the store checks journal rows by their types, ``export_table`` keeps the exported ones at
 their precision, ``mirrorpark diff`` compares those, and the report reads them. To add a
 column: write it in ``run_case`` and declare it here.
@@ -42,7 +42,7 @@ class Column:
 MARGINS = ("M_f", "M_r", "M_e", "M_fl", "M_fr", "M_rl", "M_rr")  # the ISO margins, by the paper's names
 
 COLUMNS: tuple[Column, ...] = (
-    # The case (``runner.case_fields``, ``runner.layout_fields``).
+    # The case (``episode.case_fields``, ``episode.layout_fields``).
     Column("planner", "str", doc="the planner's name"),
     Column("case_id", "str", doc="the grid case's id, or the layout's name"),
     Column("layout", "str", exported=False, doc="the layout's name (layout rows only)"),
@@ -91,10 +91,18 @@ COLUMNS: tuple[Column, ...] = (
     # Errors and what a layout's figure draws: kept in the run's folder, not exported.
     Column("error", "str", doc="the exception of a case that errored"),
     Column("traceback", "str", exported=False),
-    Column("path_t", "list[float]", "s", exported=False, doc="the time of each step of the path (layout rows)"),
-    Column("path_x", "list[float]", "m", exported=False, doc="the rear axle at every step (layout rows)"),
+    # The driven trajectory (layout rows; grid rows of ``evaluate --trajectories``): the state
+    # after the reset and after every step, and each step's commands (``episode.trajectory_fields``).
+    Column("path_t", "list[float]", "s", exported=False, doc="the time of each state"),
+    Column("path_x", "list[float]", "m", exported=False, doc="the rear axle, in the scene's frame"),
     Column("path_y", "list[float]", "m", exported=False),
-    Column("path_theta", "list[float]", "rad", exported=False, doc="the heading at every step (layout rows)"),
+    Column("path_theta", "list[float]", "rad", exported=False, doc="the heading"),
+    Column("path_v", "list[float]", "m/s", exported=False, doc="the speed (negative in reverse)"),
+    Column("path_accel", "list[float]", "m/s^2", exported=False, doc="the actual acceleration (after its lag)"),
+    Column("path_steer", "list[float]", "rad", exported=False, doc="the actual front-wheel angle (after its lag)"),
+    Column("path_accel_cmd", "list[float]", "m/s^2", exported=False, doc="the step's commanded acceleration"),
+    Column("path_steer_cmd", "list[float]", "rad", exported=False, doc="the step's commanded front-wheel angle"),
+    Column("path_origin", "list[float]", "m", exported=False, doc="a layout file's frame origin in the scene's"),
 )
 
 BY_NAME: dict[str, Column] = {c.name: c for c in COLUMNS}

@@ -61,13 +61,15 @@ def run_episode(
     max_steps: int = 100_000,
     trace: list[dict] | None = None,
     record: list[tuple] | None = None,
+    actions: list | None = None,
 ):
     """Roll ``policy`` out in ``env`` for one episode; return (last info, steps).
 
     ``scenario``: a grid ``Scenario`` or case id, a ``Layout``, or None (a random case).
     ``trace``, if given, receives the info of the reset and of every step; ``record`` the
     reset's (obs, info) and then every step's (action, obs, reward, terminated, truncated,
-    info). An episode the policy gives up ends once the car stands, as truncated."""
+    info); ``actions`` every action the policy gave. An episode the policy gives up ends
+    once the car stands, as truncated."""
     from mirrorpark_env.layout import Layout
 
     key = "layout" if isinstance(scenario, Layout) else "scenario"
@@ -81,6 +83,8 @@ def run_episode(
     steps = 0
     while steps < max_steps:
         action = policy.act(obs, info)
+        if actions is not None:
+            actions.append(action)
         obs, reward, terminated, truncated, info = env.step(action)
         steps += 1
         if trace is not None:

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 import mirrorpark_env  # noqa: F401
 from evaluation.cases import CASE_FIELDS, load_case_file
-from evaluation.runner import case_fields
+from evaluation.episode import case_fields
 from evaluation.store import ResultStore, StoreWarning, read_results
 from mirrorpark_env import Scenario
 

@@ -1,0 +1,183 @@
+"""One episode of a planner on a grid case or a layout, as one result row (``run_case``).
+
+The row holds the case's own values, the episode's verdict and margins, the planner's
+work and time per call, and, where asked for, the driven trajectory: the states and
+commands of every step (``path_*``, for ``mirrorpark export --trajectories``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import traceback
+from typing import Any
+
+import numpy as np
+
+from mirrorpark_env.criteria import iso_pose_exists
+from mirrorpark_env.layout import Layout
+from mirrorpark_env.scenario import Scenario
+from mirrorpark_env.vehicle import VehicleParams, vehicle_name
+
+from .causes import episode_cause
+from .provenance import current_id
+from .schema import MARGINS
+
+_ENV = None  # one environment per worker process
+
+
+def worker_env():
+    global _ENV
+    if _ENV is None:
+        import gymnasium as gym
+
+        import mirrorpark_env  # noqa: F401
+
+        _ENV = gym.make("MirrorPark-v0")  # with its TimeLimit: episodes end at 180 s
+    return _ENV
+
+
+def case_fields(sc: Scenario) -> dict[str, Any]:
+    """The case's own values, as run (the id is only its name)."""
+    return {
+        "case_id": sc.case_id,
+        "parking_type": sc.parking_type.value,
+        "road_width": sc.road_width,
+        "slot_length": sc.slot_length,
+        "slot_width": sc.slot_width,
+        "theta0_deg": round(sc.theta0_deg, 9),
+        "y0": sc.y0,
+        "y1": round(sc.road_width - sc.y0, 9),  # distance from the rear axle to the road boundary
+        "start_x_offset": sc.start_x_offset,
+    }
+
+
+def layout_fields(lay: Layout) -> dict[str, Any]:
+    """A layout's row fields: its name, slot and start (the grid's columns where they apply)."""
+    s = lay.slot
+    return {
+        "case_id": lay.name,
+        "layout": lay.name,
+        "vehicle": "paper" if lay.vehicle is None else (vehicle_name(lay.vehicle) or "custom"),
+        "parking_type": s.parking_type.value if s is not None else "none",
+        "road_width": lay.road_width,
+        "slot_length": s.length if s is not None else math.nan,
+        "slot_width": s.width if s is not None else math.nan,
+        "theta0_deg": round(math.degrees(lay.start[2]), 9),
+        "y0": math.nan,
+        "y1": math.nan,
+        "start_x_offset": math.nan,
+    }
+
+
+def _feasible(case: Scenario | Layout) -> bool:
+    """Whether the case's slot admits an ISO pose (a layout without a slot: always)."""
+    if isinstance(case, Layout):
+        if case.slot is None:
+            return True
+        ptype, sl, sw = case.slot.parking_type, case.slot.length, case.slot.width
+    else:
+        ptype, sl, sw = case.parking_type, case.slot_length, case.slot_width
+    car = case.vehicle if isinstance(case, Layout) and case.vehicle is not None else VehicleParams.table_ii()
+    return bool(iso_pose_exists(ptype.value, sl, sw, car))
+
+
+def trajectory_fields(trace: list[dict], actions: list, params: VehicleParams) -> dict[str, list[float]]:
+    """The driven trajectory as row fields: the state after the reset and after every step
+    (time, rear-axle pose, speed, actual acceleration and steering), and the commands of each
+    step (acceleration, steering; the last state has none: NaN). States are rounded to 0.1 mm
+    and 1e-6 rad; commands are kept whole, so that the truth model replays them exactly."""
+    from mirrorpark_env.vehicle import from_action
+
+    states = [i["vehicle_state"] for i in trace]
+    commands = [from_action(params, a) for a in actions] + [(math.nan, math.nan)]
+    return {
+        "path_t": [round(float(i["parking_time"]), 6) for i in trace],
+        "path_x": [round(s.x, 4) for s in states],
+        "path_y": [round(s.y, 4) for s in states],
+        "path_theta": [round(s.theta, 6) for s in states],
+        "path_v": [round(s.v, 6) for s in states],
+        "path_accel": [round(s.a, 6) for s in states],
+        "path_steer": [round(s.delta, 6) for s in states],
+        "path_accel_cmd": [float(c[0]) for c in commands],
+        "path_steer_cmd": [float(c[1]) for c in commands],
+    }
+
+
+def run_case(
+    planner: str, sc: Scenario | Layout, keep_stats: list | None = None, trajectory: bool = False
+) -> dict[str, Any]:
+    """One episode of ``planner`` on a grid case or a layout; never raises (errors become rows).
+
+    With ``trajectory`` (always for a layout) the row also holds the driven trajectory
+    (``trajectory_fields``, in the layout's frame) for figures and ``mirrorpark export
+    --trajectories``. ``keep_stats``: a list that the policy's ``PlanStats`` of every call
+    are appended to (the benchmark's breakdown)."""
+    from planners.base import run_episode
+
+    from .registry import make_policy
+
+    t0 = time.perf_counter()
+    row: dict[str, Any] = {"planner": planner}
+    info = None
+    try:
+        is_layout = isinstance(sc, Layout)
+        row.update(layout_fields(sc) if is_layout else case_fields(sc))
+        policy = make_policy(planner)
+        keep = trajectory or is_layout
+        trace: list[dict] | None = [] if keep else None
+        actions: list | None = [] if keep else None
+        env = worker_env()
+        info, steps = run_episode(env, policy, sc, trace=trace, actions=actions)
+        if keep:
+            row.update(trajectory_fields(trace, actions, env.unwrapped.params))
+            if is_layout:
+                row["path_origin"] = [float(sc.origin[0]), float(sc.origin[1])]
+        if keep_stats is not None:
+            keep_stats.extend(policy.stats)
+        times = [1e3 * s.wall_time_s for s in policy.stats]
+        row.update(
+            success=bool(info["is_success"]),
+            failed_criterion=info["failed_criterion"],
+            collision=bool(info["collision"]),
+            heading_error_deg=float(info["heading_error_deg"]),
+            switches=int(info["direction_switches"]),
+            parking_time_s=float(info["parking_time"]),
+            path_length_m=float(info["path_length"]),
+            steps=steps,
+            planning_calls=len(times),
+            plan_time_median_ms=float(np.median(times)) if times else math.nan,
+            plan_time_max_ms=float(np.max(times)) if times else math.nan,
+            plan_times_ms=[round(t, 3) for t in times],
+            # Work per call, which (unlike time) any machine repeats: iterations (SCP rounds,
+            # search expansions), QP solves, nodes (branch and bound, search).
+            plan_iterations=[int(s.iterations) for s in policy.stats],
+            plan_qp_solves=[int(s.qp_solves) for s in policy.stats],
+            plan_nodes=[int(s.nodes) for s in policy.stats],
+            safety_net_calls=sum(bool(s.detail.get("safety_net")) for s in policy.stats),
+            setup_ms=1e3 * float(getattr(policy, "setup_time_s", 0.0)),
+            planner_status=policy.status,
+            error=None,
+            inside_slot=bool(info["inside_slot"]),
+            min_clearance_m=float(info["min_clearance"]),
+            speed_at_min_clearance=float(info["speed_at_min_clearance"]),
+            min_clearance_away_m=float(info["min_clearance_away"]),
+            speed_at_min_clearance_away=float(info["speed_at_min_clearance_away"]),
+        )
+        for m in MARGINS:
+            row[m] = float(info["margins"].get(m, math.nan))
+    except Exception as err:  # noqa: BLE001  (any failure of one case must not stop the run)
+        row.update(
+            success=False,
+            failed_criterion="error",
+            planner_status="error",
+            error=f"{type(err).__name__}: {err}",
+            traceback=traceback.format_exc(limit=5),
+        )
+    feasible = _feasible(sc)
+    row["feasible"] = feasible
+    ended = None if row.get("planner_status") == "error" else info
+    row["failure_cause"], row["failure_amount"] = episode_cause(ended, feasible)
+    row["episode_wall_s"] = time.perf_counter() - t0
+    row["environment"] = current_id()  # the machine and packages (``environment.jsonl``)
+    return row
