@@ -11,6 +11,15 @@ def add_compare(sub) -> None:
         "compare", help="several runs on their common cases: rates with 95 %% intervals, paired differences"
     )
     c.add_argument("runs", nargs="+", help="results folders or exported tables (each planner in them is a run)")
+    c.add_argument(
+        "--against",
+        default=None,
+        metavar="PLANNERS",
+        help="also these planners' committed full-grid rows (comma-separated, e.g. mirror,hybrid-astar) "
+        "for exactly the runs' cases, without running them; refused where they came from other code",
+    )
+    c.add_argument("--allow-other-code", action="store_true", help="take committed rows of other code, labelled so")
+    c.add_argument("--grid", default=None, help="the folder of committed rows (default: the repository's results/grid)")
     c.add_argument("--reference", default=None, help="the run the others are paired against (default: the first)")
     c.add_argument("--out", default=None, help="folder for compare.md, .csv and .png (default: print only)")
     c.set_defaults(func=cmd_compare)
@@ -27,6 +36,14 @@ def cmd_compare(args: argparse.Namespace) -> int:
     ]
     if not found:
         raise ValueError("runs: no rows in the runs given")
+    if args.against:
+        from .committed import committed_rows
+
+        cases = set.intersection(*(set(rows["case_id"]) for _, _, rows in found))
+        for planner in filter(None, (p.strip() for p in args.against.split(","))):
+            rows, same = committed_rows(planner, cases, args.grid, args.allow_other_code)
+            label = f"{planner} (committed)" if same else f"{planner} (committed, other code)"
+            found.append((label, "", rows))
     planners = [p for p, _, _ in found]
     # A planner in several runs is named by its run too.
     runs = {(p if planners.count(p) == 1 else f"{p} ({path})"): rows for p, path, rows in found}

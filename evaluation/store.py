@@ -253,11 +253,17 @@ class ResultStore:
 
 def record_environment(log: Path, planner: str, cases: int) -> None:
     """Append to ``log`` what a run of ``planner`` on ``cases`` cases runs on
-    (``provenance.environment``) and the code it runs (``provenance.source_id``)."""
+    (``provenance.environment``) and the code it runs (``provenance.source_id``, and the
+    planner's own ``code_stamp.code_id``)."""
+    from .code_stamp import code_id
     from .provenance import environment, environment_id, source_files, source_id
 
     env = environment()
     line = {"id": environment_id(env), "planner": planner, "cases": cases, "source": source_id(planner), **env}
+    try:  # this planner's code alone (``compare --against`` checks it)
+        line["code"] = code_id(planner)
+    except Exception:  # noqa: BLE001  (a stamp it cannot take must not stop the run; the rows go unstamped)
+        line["code"] = None
     line["source_files"] = source_files(planner)
     with log.open("a") as f:
         f.write(json.dumps(line) + "\n")

@@ -63,3 +63,48 @@ def test_the_cli_compares_two_runs_on_their_common_cases(tmp_path, capsys):
     assert list(pd.read_csv(out / "compare.csv")["run"]) == ["guide-only", "hybrid-astar"]
     assert (out / "compare.png").stat().st_size > 1000  # success per type with its intervals
     assert main(["compare", str(tmp_path / "guide-only"), "--reference", "nope"]) == 2
+
+
+def test_against_takes_exactly_the_runs_cases_and_refuses_other_code(tmp_path, capsys):
+    """``--against``: committed rows (here a grid folder made of a guide-only run over 3 cases)
+    for exactly the 2 cases of the run; refused where the table's stamp is other code."""
+    import json
+    import shutil
+
+    from evaluation.committed import MANIFEST
+
+    grid = tmp_path / "grid"
+    base = ["evaluate", "--planner", "guide-only", "--sample", "smoke", "--quiet"]
+    assert main([*base, "--chunk", "1/30", "--out", str(tmp_path / "all"), "--export", str(grid)]) == 0
+    table = next(grid.glob("guide-only*.parquet"))
+    shutil.move(table, grid / "guide-only-chunk01-of-01.parquet")  # named like the committed chunks
+    committed = pd.read_parquet(grid / "guide-only-chunk01-of-01.parquet")
+    assert len(committed) == 3
+    run = tmp_path / "run"
+    cases = tmp_path / "cases.csv"
+    fields = ["parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "y0"]
+    committed[fields].iloc[:2].to_csv(cases, index=False)
+    assert main([*base[:-1], "--cases", str(cases), "--out", str(run), "--quiet"]) == 0
+    capsys.readouterr()
+    out = tmp_path / "cmp"
+    assert main(["compare", str(run), "--against", "guide-only", "--grid", str(grid), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "# 2 runs on 2 common cases" in text and "guide-only (committed)" in text
+    assert list(pd.read_csv(out / "compare.csv")["run"]) == ["guide-only", "guide-only (committed)"]
+    # The same rows, said to come from other code (a table committed before stamps, in the manifest).
+    old = tmp_path / "old"
+    old.mkdir()
+    committed.to_parquet(old / "guide-only-chunk01-of-01.parquet")  # no metadata: no stamp of its own
+    stamp = {"guide-only-chunk01-of-01.parquet": {"code_id": "0" * 12, "commit": "abc"}}
+    (old / MANIFEST).write_text(json.dumps(stamp))
+    assert main(["compare", str(run), "--against", "guide-only", "--grid", str(old)]) == 2
+    err = capsys.readouterr().err
+    assert "other code (000000000000 of abc)" in err and "--allow-other-code" in err and "Traceback" not in err
+    assert main(["compare", str(run), "--against", "guide-only", "--grid", str(old), "--allow-other-code"]) == 0
+    assert "guide-only (committed, other code)" in capsys.readouterr().out
+    # A case with no committed row, and a planner with none, are refused by name.
+    committed.iloc[1:].to_parquet(old / "guide-only-chunk01-of-01.parquet")
+    assert main(["compare", str(run), "--against", "guide-only", "--grid", str(old), "--allow-other-code"]) == 2
+    assert "1 of the run's 2 cases have no committed row" in capsys.readouterr().err
+    assert main(["compare", str(run), "--against", "nobody", "--grid", str(grid)]) == 2
+    assert "no committed rows of 'nobody'" in capsys.readouterr().err
