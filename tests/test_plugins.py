@@ -4,6 +4,7 @@ one-line errors for each way a plug-in can be wrong, and ``check_policy``."""
 from __future__ import annotations
 
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -123,3 +124,57 @@ def test_a_plugin_runs_on_two_workers_and_the_cli_checks_it(plugin, tmp_path, ca
 def test_the_builtin_planners_keep_the_contract():
     for name in ("guide-only", "mirror-guided"):
         assert check_policy(make_policy(name), steps=10) == [], name
+
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "rs-planner"
+# Runs the CLI with the workers' start method forced (a fresh interpreter: its own forkserver).
+FORCED = textwrap.dedent(
+    """
+    import multiprocessing as mp, sys
+    from evaluation import runner
+
+    def forced():
+        ctx = mp.get_context(sys.argv[1])
+        return ctx, {}
+
+    runner._pool_context = forced
+    from evaluation.cli import main
+    sys.exit(main(sys.argv[2:]))
+    """
+)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["fork", "forkserver"])
+def test_the_example_package_by_entry_point_and_by_factory_on_two_workers(method, tmp_path):
+    """examples/rs-planner, found by the entry point its pyproject.toml declares (read from
+    a distribution's metadata on the path, as pip installs it) and by ``rs_planner:make``,
+    scored on two workers started by ``fork`` and by ``forkserver``."""
+    import os
+    import re
+    import subprocess
+    import sys
+
+    from evaluation.store import read_results
+
+    toml = (EXAMPLE / "pyproject.toml").read_text()  # (tomllib is Python 3.11+)
+    section = toml.split('[project.entry-points."mirrorpark.planners"]', 1)[1]
+    name, target = re.search(r'^\s*([\w-]+)\s*=\s*"([^"]+)"', section, re.M).groups()
+    dist = tmp_path / "site" / "mirrorpark_rs_example-0.1.0.dist-info"
+    dist.mkdir(parents=True)
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: mirrorpark-rs-example\nVersion: 0.1.0\n")
+    (dist / "entry_points.txt").write_text(f"[mirrorpark.planners]\n{name} = {target}\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(EXAMPLE), str(tmp_path / "site"), os.getcwd()]))
+    for planner in (name, target):
+        out = tmp_path / planner.replace(":", "_")
+        args = ["evaluate", "--planner", planner, "--sample", "smoke", "--chunk", "1/45", "--workers", "2"]
+        done = subprocess.run(
+            [sys.executable, "-c", FORCED, method, *args, "--out", str(out), "--quiet"],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+        assert done.returncode == 0, done.stderr
+        df = read_results([out])
+        assert len(df) == 2 and (df["planner"] == planner).all() and df["error"].isna().all()
