@@ -43,6 +43,22 @@ PLUGIN = textwrap.dedent(
 
     def wrong():
         return Wrong()
+
+    class Loud(Creep):
+        def act(self, obs, info):
+            return np.array([3.0, 0.0], dtype=np.float32)  # beyond the normalised range
+
+    def loud():
+        return Loud()
+
+    class NoReset:  # a duck that forgot reset
+        name, stats, status, gave_up = "noreset", [], "ok", False
+
+        def act(self, obs, info):
+            return np.zeros(2, dtype=np.float32)
+
+    def noreset():
+        return NoReset()
     """
 )
 
@@ -71,15 +87,30 @@ def test_a_factory_by_module_and_name_is_a_planner(plugin):
         (":make", r"a plug-in is named package.module:factory"),
     ],
 )
-def test_every_way_a_plugin_is_wrong_is_one_line(plugin, name, message):
+def test_every_way_a_plugin_is_wrong_is_one_line(plugin, name, message, tmp_path, capsys):
     with pytest.raises(ValueError, match=message) as err:
         make_policy(name)
     assert "\n" not in str(err.value)
+    # The CLI: exit code 2, one line, no traceback, before any case runs.
+    args = ["evaluate", "--planner", name, "--sample", "smoke", "--chunk", "1/90", "--out", str(tmp_path / "r")]
+    assert main([*args, "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and err.startswith("mirrorpark: error: ") and "Traceback" not in err
+    assert not (tmp_path / "r").exists()
 
 
 def test_check_policy_names_what_breaks_the_contract(plugin):
     problems = check_policy(make_policy(f"{plugin}:wrong"))
     assert problems == ["act at step 0: the action has shape (3,), not (2,) [accel, steer]"]
+    (loud,) = check_policy(make_policy(f"{plugin}:loud"))
+    assert loud.startswith("act at step 0: the action [3.0, 0.0] leaves [-1, 1]")
+    import myplug
+
+    assert check_policy(myplug.NoReset()) == [
+        "reset(geometry) raised AttributeError: 'NoReset' object has no attribute 'reset'"
+    ]
+    with pytest.raises(ValueError, match=r"not a Policy \(missing: reset;"):
+        make_policy(f"{plugin}:noreset")
 
 
 class _EntryPoint:
