@@ -50,6 +50,7 @@ def main() -> None:
     ap.add_argument("--preset", default="mirror", choices=sorted([*PRESETS, "hybrid-astar"]))
     ap.add_argument("--name", default="mirror-variant")
     ap.add_argument("--sample", default="smoke", choices=("smoke", "standard"))
+    ap.add_argument("--layouts", nargs="+", default=None, help="layout files or folders instead of the sample")
     ap.add_argument("--every", type=int, default=1, help="every n-th case of the sample (sorted by slot)")
     ap.add_argument("--start", type=int, default=0, help="... from this one")
     ap.add_argument("--out", default="results/variants")
@@ -68,7 +69,12 @@ def main() -> None:
         raise SystemExit(f"--set: {err}") from None
 
     registry.PLANNERS[a.name] = factory
-    cases = from_sample(a.sample)
+    if a.layouts:
+        from mirrorpark_env.layout_io import load_many
+
+        cases = load_many(a.layouts)
+    else:
+        cases = from_sample(a.sample)
     if a.every > 1 or a.start:
         cases = sorted(cases, key=slot_of)[a.start :: a.every]
     df = pd.DataFrame([run_case(a.name, sc) for sc in cases])
