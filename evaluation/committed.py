@@ -3,7 +3,8 @@
 ``results/grid/`` holds every grid case's row of the main planners, chunk by chunk. A
 table's code stamp (``code_stamp.code_id``) is in its metadata (the environments it was run
 in, ``code``) or, for tables committed before stamps were recorded, in
-``results/grid/code_ids.json`` (file name -> planner, commit, code_id). Rows whose stamp is
+``results/grid/code_ids.json`` (file name -> planner, commit, code_id), which wins where it
+names a file. Rows whose stamp is
 not the installed code's are refused unless the caller allows other code: they would pass
 for what this install's planner does.
 """
@@ -20,14 +21,16 @@ MANIFEST = "code_ids.json"
 
 
 def _stamp(path: Path, planner: str, manifest: dict) -> tuple[str | None, str]:
-    """(code_id, commit or '') of the table at ``path``: its metadata's, else the manifest's."""
+    """(code_id, commit or '') of the table at ``path``: the manifest's where it names the
+    file (a curated record, which may also say that later code, changed only in what decides
+    no row, gives the same rows), else its metadata's."""
     from .store import environments_of
 
+    entry = manifest.get(path.name)
+    if entry is not None:
+        return entry.get("code_id"), entry.get("commit", "")
     codes = {e.get("code") for e in environments_of(path) if e.get("planner") == planner and e.get("code")}
-    if len(codes) == 1:
-        return codes.pop(), ""
-    entry = manifest.get(path.name, {})
-    return entry.get("code_id"), entry.get("commit", "")
+    return (codes.pop(), "") if len(codes) == 1 else (None, "")
 
 
 def committed_rows(

@@ -153,9 +153,9 @@ class HybridAStar:
         return bool((self._gaps(poses) >= self._required(poses)).all())
 
     def _required(self, poses: np.ndarray) -> np.ndarray | float:
-        """Gap each sampled pose must keep: ``required_gap``, relieved within ``START_RELIEF``
-        of a start that is closer (``common.clearance``; grid starts may touch the road's
-        edges, and the car must be able to leave them)."""
+        """Gap each sampled pose must keep: ``required_gap``, but within ``start_relief`` of a
+        start that is closer only ``start_gap_share`` of the start's gap (``common.clearance``;
+        grid starts may touch the road's edges, and the car must be able to leave them)."""
         cfg = self.cfg
         floor = cfg.start_gap_share * self._start_gap if cfg.start_gap_share < 1 else math.inf
         return required_gap(poses, self._start, self._start_gap, self.required_gap, cfg.start_relief, floor)
