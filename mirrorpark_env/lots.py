@@ -1,7 +1,8 @@
 """Parking lots beyond the grid: seeded, at four levels of difficulty, as layouts.
 
 A lot is an aisle (along +x in its own frame) with a row of parked cars below it, in
-which one gap is the target slot; above the aisle a wall or a second row. The lot is then
+which one gap is the target slot; above the aisle a wall, from level 2 behind a second row
+of parked cars (the aisle is the free width between the rows). The lot is then
 turned and shifted into the world (and at level 2 and up, reflected half the time), so
 that planners meet it in any frame. By level:
 
@@ -67,9 +68,11 @@ def _draw(rng: np.random.Generator, level: int, car: VehicleParams, name: str) -
     if open_space:  # the row's gap becomes open ground: no neighbours within reach, no slot
         obstacles = [p for p in obstacles if np.abs(p[:, 0] - target[0]).min() > 4.0]
         slot = None
-    obstacles.append(_box(-30.0, 30.0, aisle, aisle + 0.5))  # the far side of the aisle
+    far = aisle  # the wall's near edge: the aisle's far side, or behind the row across it
     if level >= 2:
         obstacles += _far_row(rng, aisle)
+        far = aisle + 2.2
+    obstacles.append(_box(-30.0, 30.0, far, far + 0.5))
     if level >= 3:
         obstacles += _pillars(rng, aisle)
     start = _start(rng, level, car, aisle, target, obstacles)
@@ -178,12 +181,13 @@ def _neighbour_in(rng: np.random.Generator, box: np.ndarray) -> np.ndarray:
 
 
 def _far_row(rng, aisle: float) -> list[np.ndarray]:
-    """Cars parked along the aisle's far side, some gaps between them."""
+    """Cars parked along the aisle's far side, beyond it (the aisle keeps its width), some
+    gaps between them."""
     out, x = [], rng.uniform(-28.0, -22.0)
     while x < 24.0:
         length = rng.uniform(4.2, 4.9)
         if rng.random() < 0.8:
-            out.append(_box(x, x + length, aisle - rng.uniform(1.9, 2.1), aisle - 0.1))
+            out.append(_box(x, x + length, aisle + 0.1, aisle + rng.uniform(1.9, 2.1)))
         x += length + rng.uniform(0.6, 2.5)
     return out
 
