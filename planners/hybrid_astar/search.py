@@ -96,7 +96,7 @@ class _Node:
 class HybridAStar:
     """Plans in one scenario geometry; ``plan(start)`` returns a path or a failure status."""
 
-    def __init__(self, geometry: ScenarioGeometry, config: HybridAStarConfig | None = None):
+    def __init__(self, geometry: ScenarioGeometry, config: HybridAStarConfig | None = None, keep_trees: bool = False):
         self.geometry = geometry
         self.cfg = cfg = config or HybridAStarConfig()
         car = geometry.vehicle
@@ -118,7 +118,9 @@ class HybridAStar:
         self.goal_heading = math.radians(cfg.goal_heading_deg)
         self._primitives = self._make_primitives()
         self._grids: dict[tuple, GridDistance] = {}
-        self.last_trees: list[tuple[bool, list[_Node]]] = []  # (backward, nodes) of the last call's searches
+        # With ``keep_trees``, (backward, nodes) of the last call's searches, for figures.
+        self.keep_trees = keep_trees
+        self.last_trees: list[tuple[bool, list[_Node]]] = []
         # The slot's centre has the largest margins a pose in it can have: if the ISO check
         # fails there, no pose in the slot passes (a slot narrower than the car plus margins).
         self.goal_exists = self.criteria.verdict(*self.goal, 0.0, 0.0, False).failed is None
@@ -284,7 +286,7 @@ class HybridAStar:
 
         origin_key = self._key(origin, float(self._gaps(np.array([origin]))[0]))
         nodes: list[_Node] = [_Node(origin, 0.0, -1, 0, 0.0, None, origin_key)]
-        self.last_trees.append((backward, nodes))
+        self._keep_tree(backward, nodes)
         open_heap = [(h(origin), 0, 0)]
         best_g = {origin_key: 0.0}
         closed: set[tuple[int, ...]] = set()
@@ -352,6 +354,10 @@ class HybridAStar:
                 heapq.heappush(open_heap, (g + hv, len(nodes) - 1, len(nodes) - 1))
         counts["nodes"] += len(nodes)
         return None, status, math.nan
+
+    def _keep_tree(self, backward: bool, nodes: list[_Node]) -> None:
+        if self.keep_trees:  # the list grows as the search runs: the figure sees all of it
+            self.last_trees.append((backward, nodes))
 
     @staticmethod
     def _trace(nodes: list[_Node], i: int, tail: np.ndarray | None) -> np.ndarray:

@@ -20,7 +20,7 @@ from planners.hybrid_astar.search import HybridAStar, HybridAStarConfig
 
 
 def draw(ax, g, cfg: HybridAStarConfig, title: str) -> None:
-    hs = HybridAStar(g, cfg)
+    hs = HybridAStar(g, cfg, keep_trees=True)
     path, st = hs.plan((g.start.x, g.start.y, g.start.theta))
     for poly in g.obstacles.polygons:
         ax.fill(*np.asarray(poly).T, color="0.75", lw=0)
