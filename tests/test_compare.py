@@ -108,3 +108,20 @@ def test_against_takes_exactly_the_runs_cases_and_refuses_other_code(tmp_path, c
     assert "1 of the run's 2 cases have no committed row" in capsys.readouterr().err
     assert main(["compare", str(run), "--against", "nobody", "--grid", str(grid)]) == 2
     assert "no committed rows of 'nobody'" in capsys.readouterr().err
+
+
+def test_a_planners_code_stamp_covers_its_own_code_and_not_the_others():
+    """``code_id`` hashes what decides a planner's rows: its package, the shared planner code,
+    the environment and the row-building modules; not another planner's package, so that a
+    change to hybrid A* leaves the committed rows of ``mirror`` valid."""
+    from evaluation.code_stamp import ROW_MODULES, code_files, code_id, policy_modules
+
+    mirror = code_files([*policy_modules("mirror"), *ROW_MODULES])
+    hybrid = code_files([*policy_modules("hybrid-astar"), *ROW_MODULES])
+    for files in (mirror, hybrid):
+        assert {"mirrorpark_env.env", "mirrorpark_env.vehicle", "planners.base", "evaluation.episode"} <= set(files)
+        assert not any(n.startswith(("evaluation.registry", "evaluation.cli", "planners.rl")) for n in files)
+    assert "planners.mirror.scp" in mirror and not any(n.startswith("planners.hybrid_astar") for n in mirror)
+    assert "planners.hybrid_astar.search" in hybrid and not any(n.startswith("planners.mirror") for n in hybrid)
+    assert code_id("mirror") == code_id("mirror-cold")  # one code, two presets of it
+    assert code_id("mirror") != code_id("hybrid-astar")
