@@ -6,6 +6,8 @@ from collections.abc import Callable
 from functools import partial
 
 from planners.base import Policy
+from planners.mirror.presets import PRESETS as MIRROR_PRESETS
+from planners.mirror.presets import preset_config
 
 
 def _in_slot_frame(policy: Policy) -> Policy:
@@ -24,10 +26,8 @@ def mirror_policy(config) -> Policy:
 
 
 def _mirror(preset: str) -> Policy:
-    """``MirrorPolicy`` with the settings ``planners.mirror.config.<preset>()``."""
-    from planners.mirror import config
-
-    return mirror_policy(getattr(config, preset)())
+    """``MirrorPolicy`` with the settings of ``preset`` (``planners.mirror.presets``)."""
+    return mirror_policy(preset_config(preset))
 
 
 def _guide_only() -> Policy:
@@ -43,11 +43,7 @@ def _hybrid_astar() -> Policy:
 
 
 PLANNERS: dict[str, Callable[[], Policy]] = {
-    "mirror": partial(_mirror, "mirror_config"),  # the default: candidates aimed and compared by a cost to go
-    "mirror-cold": partial(_mirror, "cold_config"),  # the same without any path as warm start (shape seeds)
-    "mirror-paper": partial(_mirror, "paper_config"),  # the paper's fixed-angle linearisation, multi-start
-    "mirror-guided": partial(_mirror, "guided_config"),  # the geometric guide chooses, the QP polishes (the ablation)
-    "mirror-multistart": partial(_mirror, "multistart_config"),  # neither guide nor cost to go: shape seeds
+    **{name: partial(_mirror, name) for name in MIRROR_PRESETS},  # planners/mirror/presets.py, in its order
     "guide-only": _guide_only,  # the geometric guide tracked, no QP (the ablation)
     "hybrid-astar": _hybrid_astar,  # the search-based baseline
 }

@@ -26,10 +26,7 @@ from evaluation import registry
 from evaluation.cases import from_sample
 from evaluation.runner import run_case, slot_of
 from evaluation.store import export_table
-from planners.mirror import config
-
-PRESETS = {"mirror": "mirror_config", "mirror-cold": "cold_config", "mirror-guided": "guided_config"}
-PRESETS |= {"mirror-multistart": "multistart_config", "mirror-paper": "paper_config"}
+from planners.mirror.presets import PRESETS, preset_config
 
 
 def _policy_factory(preset: str, over: dict):
@@ -40,7 +37,7 @@ def _policy_factory(preset: str, over: dict):
 
         cfg = HybridAStarConfig(**over)
         return lambda: HybridAStarPolicy(cfg)
-    cfg = getattr(config, PRESETS[preset])(**over)
+    cfg = preset_config(preset, **over)
     return lambda: registry.mirror_policy(cfg)
 
 

@@ -13,7 +13,7 @@ import pytest
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario
 from planners.base import run_episode
-from planners.mirror.config import CoreConfig, cold_config, guided_config, multistart_config, paper_config
+from planners.mirror.config import CoreConfig
 from planners.mirror.cost import (
     cost_pattern,
     end_cost,
@@ -27,6 +27,7 @@ from planners.mirror.frames import XI_TH, XI_X, XI_Y
 from planners.mirror.planner import MirrorPlanner
 from planners.mirror.plans import Candidate
 from planners.mirror.policy import MirrorPolicy
+from planners.mirror.presets import preset_config
 from planners.mirror.variables import ix
 
 W = 1.67  # Table II's car width [m]; side margins of reverse and angle slots >= 0.1 m
@@ -55,9 +56,13 @@ def test_the_weight_across_grows_in_narrow_windows_only():
     g = Scenario.from_case_id("angle_rw3.50_sl4.82_sw1.92_th+0_y2.40").build()
     assert terminal_for(g, CoreConfig(lateral_window=0.0)) is None
     # The former default and the paper's method keep Eq. (33)'s one weight; mirror-cold shares the default's.
-    for keeps_one in (guided_config(), multistart_config(), paper_config()):
+    for keeps_one in (
+        preset_config("mirror-guided"),
+        preset_config("mirror-multistart"),
+        preset_config("mirror-paper"),
+    ):
         assert terminal_for(g, keeps_one.core) is None
-    assert terminal_for(g, cold_config().core) == tight
+    assert terminal_for(g, preset_config("mirror-cold").core) == tight
 
 
 @pytest.mark.parametrize("switch", [None, 25])
@@ -122,7 +127,7 @@ def test_the_qps_objective_is_its_rows_and_its_end_is_the_true_costs_end(case, s
     prices it, and the true cost adds the running position error of the real states."""
     g = Scenario.from_case_id(case).build()
     core = MirrorPlanner(g).core
-    cfg, qp, N = core.cfg, core.qp, core.N
+    cfg, qp, N = core.cfg, core.qp, core.cfg.horizon
     target = np.array(g.target, float)
     term = core.checks.terminal_toward(target)
     rng = np.random.default_rng(len(case) + (switch or 0))

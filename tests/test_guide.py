@@ -15,13 +15,13 @@ import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario, VehicleParams
 from planners.base import run_episode
 from planners.common.clearance import START_RELIEF, gaps
-from planners.mirror.config import guided_config
 from planners.mirror.guide import GuideSearch
 from planners.mirror.mirror_line import (
     parallel_dark_point,
 )
 from planners.mirror.planner import MirrorPlanner
 from planners.mirror.policy import MirrorPolicy
+from planners.mirror.presets import preset_config
 
 P = VehicleParams.table_ii()
 R_MIN = 2.5 / math.tan(0.6)  # 3.6542 m
@@ -109,9 +109,11 @@ def test_parallel_switch_pose_is_a_forward_arc_from_the_target():
 def test_guided_plan_has_one_switch_standing_and_ends_at_rest():
     env = gym.make("MirrorPark-v0").unwrapped
     _, info = env.reset(options={"scenario": "reverse_rw6.00_sl4.82_sw2.37_th+0_y1.20"})
-    planner = MirrorPlanner(info["geometry"], guided_config())
+    planner = MirrorPlanner(info["geometry"], preset_config("mirror-guided"))
     plan = planner.plan(info["vehicle_state"])
-    assert plan is not None and plan.stats.detail["guided"]
+    assert plan is not None and plan.stats.detail["progress"] == pytest.approx(
+        planner.strategy.guide.search(info["vehicle_state"].as_array()[:3]).cost
+    )  # the guide's cost: its progress
     v = plan.states[:, 3]
     moving = np.sign(v[np.abs(v) > 1e-3])
     assert np.count_nonzero(np.diff(moving)) <= 1  # one plan, at most one direction switch
@@ -131,7 +133,7 @@ def test_guided_plan_has_one_switch_standing_and_ends_at_rest():
 )
 def test_hard_cases_park_with_the_guide(case_id):
     env = gym.make("MirrorPark-v0").unwrapped
-    policy = MirrorPolicy(guided_config())  # the registry's "mirror-guided"
+    policy = MirrorPolicy(preset_config("mirror-guided"))  # the registry's "mirror-guided"
     info, _ = run_episode(env, policy, case_id)
     assert info["is_success"], (info["failed_criterion"], [s.status for s in policy.stats])
     assert policy.setup_time_s > 0  # the slot's tables are built at reset, not in a call
@@ -151,7 +153,7 @@ def _guide_from_start(case_id, config=None):
 def test_short_parallel_slot_needs_the_in_slot_tails():
     """1.31 car lengths: no single arc gets in; only back and forth inside the slot does."""
     case = "parallel_rw4.00_sl5.02_sw2.50_th+0_y2.10"
-    from planners.mirror.guide import GuideConfig
+    from planners.mirror.config import GuideConfig
 
     assert _guide_from_start(case, GuideConfig(in_slot_turns=False))[2] is None
     g, search, guide = _guide_from_start(case)
@@ -163,7 +165,7 @@ def test_a_car_at_the_kerb_may_leave_it_closer_than_the_gap():
     """6.5 cm from the far kerb, turning away swings the rear overhang ~5 cm out: with the
     full 4 cm gap near the start there is no guide; with the relief there is, and it keeps
     1 cm within 1 m of the start and 4 cm beyond."""
-    from planners.mirror.guide import GuideConfig
+    from planners.mirror.config import GuideConfig
 
     case = "parallel_rw4.50_sl5.72_sw2.50_th+0_y3.60"
     assert _guide_from_start(case, GuideConfig(start_gap=0.04))[2] is None
@@ -199,4 +201,4 @@ def test_a_guide_that_starts_in_the_other_gear_than_the_car_moves_pays_a_switch(
     cost = search._cost(forward)
     assert cost == pytest.approx(2.0)
     assert search._cost(forward, gear=1) == cost
-    assert search._cost(forward, gear=-1) == pytest.approx(cost + search.cfg.cusp_cost)
+    assert search._cost(forward, gear=-1) == pytest.approx(cost + search.cfg.price.switch_cost)

@@ -13,13 +13,7 @@ from fixed_cases import EASY_CASES
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario, VehicleParams
 from planners.base import run_episode
-from planners.mirror.config import (
-    CoreConfig,
-    MirrorPlannerConfig,
-    mirror_config,
-    multistart_config,
-    paper_config,
-)
+from planners.mirror.config import CoreConfig, MirrorPlannerConfig
 from planners.mirror.cost import linear_term
 from planners.mirror.frames import FLIP, planned_controls, to_planned
 from planners.mirror.mirror_line import (
@@ -32,7 +26,10 @@ from planners.mirror.mirror_line import (
 from planners.mirror.planner import MirrorPlanner
 from planners.mirror.plans import Candidate
 from planners.mirror.policy import MirrorPolicy
+from planners.mirror.presets import preset_config
 from planners.mirror.solvers import INACTIVE, QP, BranchAndBound, Disjunction, Enumeration, PiqpQP
+from planners.mirror.strategies.multistart import MultiStart
+from planners.mirror.strategies.paper import PaperMultiStart
 
 P = VehicleParams.table_ii()
 R_MIN = 2.5 / math.tan(0.6)  # 3.6542 m
@@ -112,7 +109,7 @@ def test_qp_solution_satisfies_dynamics_and_bounds():
     xi0 = g.start.as_array()
     cand = Candidate(-1, 30)
     c = linear_term(pl.core.cfg, cand.switch, np.array(g.target), 0.0)
-    ref = pl.core.shape_seeds.seed(xi0, cand, pl.line)
+    ref = pl.core.seeds.seed(xi0, cand, pl.line)
     lin_at = to_planned(ref, cand, 2)
     lin_at[30] = FLIP @ lin_at[30]
     lin = pl.core.model.jacobian_linearisation(lin_at, planned_controls(ref, cand, P, 0.1, 2))
@@ -143,8 +140,8 @@ def test_a_car_still_rolling_back_gets_a_forward_plan_once_it_may_stop_first():
     cand = Candidate(1, None)
     results = []
     for stop_first in (0.0, 0.05):
-        pl = MirrorPlanner(g, paper_config(stop_first_speed=stop_first))
-        lin = pl.core.model.paper_linearisation(pl.core.N, 0.0, 1.0)
+        pl = MirrorPlanner(g, preset_config("mirror-paper", stop_first_speed=stop_first))
+        lin = pl.core.model.paper_linearisation(pl.core.cfg.horizon, 0.0, 1.0)
         qp, _, _, _ = pl.core.qp.build(
             xi0, cand, linear_term(pl.core.cfg, cand.switch, np.array(g.target), 0.0), lin, None, {}, pl.line, False
         )
@@ -285,7 +282,7 @@ def test_obstacle_rows_are_one_row_per_alternative_exact_at_the_reference():
     obs = pl.core.qp.obstacles
     tx, ty, tth = g.target
     pose = np.array([tx + 0.4, ty + 1.0, tth + 0.2, 0.0, 0.0, 0.0])  # in the slot's mouth, near a side
-    real = np.repeat(pose[None], 2 * pl.core.N + 1, axis=0)
+    real = np.repeat(pose[None], 2 * pl.core.cfg.horizon + 1, axis=0)
     i = 10
     k = int(np.argmax(g.checker.penetration(pose[:1], pose[1:2], pose[2:3])[0]))  # the nearest obstacle
     rows = Rows()
@@ -297,7 +294,7 @@ def test_obstacle_rows_are_one_row_per_alternative_exact_at_the_reference():
     for d in rows.disj:
         assert len(set(d.rows)) == len(d.rows) and all(1 <= r < n_rows for r in d.rows)
     g_rows, g_cols, g_vals = rows.triplets()
-    G = sp.csr_matrix((g_vals, (g_rows, g_cols)), shape=(n_rows, ix(pl.core.N, 5) + 1))
+    G = sp.csr_matrix((g_vals, (g_rows, g_cols)), shape=(n_rows, ix(pl.core.cfg.horizon, 5) + 1))
     z = np.zeros(G.shape[1])
     z[[ix(i, 0), ix(i, 1), ix(i, 2)]] = pose[:3]
     value = G @ z - np.array(rows.active)
@@ -328,7 +325,7 @@ def test_obstacle_rows_of_many_pairs_after_a_switch_are_each_pairs_own():
     pl = MirrorPlanner(g)
     obs = pl.core.qp.obstacles
     tx, ty, tth = g.target
-    N, s = pl.core.N, 12
+    N, s = pl.core.cfg.horizon, 12
     t = np.linspace(0.0, 1.0, 2 * N + 1)
     real = np.zeros((2 * N + 1, 6))  # sweeping into the slot's mouth, turning
     real[:, 0], real[:, 1], real[:, 2] = tx + 3.0 - 3.5 * t, ty + 1.6 - 1.3 * t, tth + 0.5 * np.sin(3 * t)
@@ -445,12 +442,12 @@ def test_the_paper_model_started_from_the_seed_moves_a_candidate_that_nominal_sp
     _, info = env.reset(options={"scenario": "parallel_rw4.50_sl5.12_sw2.50_th-10_y1.90"})
     speeds = {}
     for first in ("nominal", "seed"):
-        pl = MirrorPlanner(info["geometry"], paper_config(time_limit_s=NO_NET, paper_first=first))
+        pl = MirrorPlanner(info["geometry"], preset_config("mirror-paper", time_limit_s=NO_NET, paper_first=first))
         plan = pl.plan(info["vehicle_state"], [Candidate(-1, 39)])
         assert plan is not None
         speeds[first] = np.abs(plan.states[:, 3]).max()
         if first == "nominal":
-            assert plan.cost >= 0.999 * pl.last_stats.detail["stay_cost"]  # no better than standing
+            assert plan.cost >= 0.999 * pl.last_stats.detail["progress"]  # no better than standing
     assert speeds["nominal"] < 1e-3 and speeds["seed"] > 2.0
 
 
@@ -459,21 +456,23 @@ def test_the_paper_models_open_choices_are_validated_by_name():
     stays selectable, and a misspelt one is refused naming the field."""
     from pydantic import ValidationError
 
-    cfg = paper_config()
+    cfg = preset_config("mirror-paper")
     assert (cfg.strategy.kind, cfg.strategy.paper_speed, cfg.strategy.paper_angle) == ("paper", "previous", "previous")
     assert MirrorPlannerConfig().strategy.kind == "aimed"  # the default never takes the paper's model
     with pytest.raises(ValidationError, match="paper_speed"):
-        paper_config(paper_speed="last")
+        preset_config("mirror-paper", paper_speed="last")
     with pytest.raises(ValidationError, match="paper_angle_tolerance"):
-        paper_config(paper_angle_tolerance=0.0)
+        preset_config("mirror-paper", paper_angle_tolerance=0.0)
     with pytest.raises(ValidationError, match="paper_first"):
-        paper_config(paper_first="guide")
+        preset_config("mirror-paper", paper_first="guide")
     with pytest.raises(ValidationError, match="stop_first_speed"):
-        paper_config(stop_first_speed=-0.1)
+        preset_config("mirror-paper", stop_first_speed=-0.1)
     with pytest.raises(ValueError, match="unknown field.*paper_correction"):
-        paper_config(paper_correction="half")  # retired: the obstacle rows shifted by the model's error
+        preset_config(
+            "mirror-paper", paper_correction="half"
+        )  # retired: the obstacle rows shifted by the model's error
     with pytest.raises(ValueError, match="unknown field.*paper_speed"):
-        mirror_config(paper_speed="previous")  # a field of another strategy
+        preset_config("mirror", paper_speed="previous")  # a field of another strategy
 
 
 def test_branch_and_bound_at_the_planners_settings_is_optimal_on_a_problem_it_meets(monkeypatch):
@@ -557,9 +556,9 @@ def test_giving_up_mid_plan_finishes_the_verified_plan_rather_than_braking_off_i
     policy.reset(Scenario.from_case_id("reverse_rw5.00_sl4.82_sw2.47_th+0_y2.00").build())
     commands = np.array([[3.0, 0.6], [-2.0, 0.3], [-1.0, 0.1]])
     policy.plan, policy.k = SimpleNamespace(commands=commands, states=np.zeros((4, 6))), 1
-    stalled = SimpleNamespace(states=np.zeros((4, 6)), stats=PlanStats(0.01, "partial", detail={"stay_cost": 5.0}))
+    stalled = SimpleNamespace(states=np.zeros((4, 6)), stats=PlanStats(0.01, "partial", detail={"progress": 5.0}))
     policy.planner.plan = lambda s: stalled
-    policy._best["stay_cost"], policy._since_best = 5.0, policy.patience  # no progress for too long
+    policy._best, policy._since_best = 5.0, policy.patience  # no progress for too long
     s = VehicleState(0.0, 0.0, 0.0, v=0.0, a=-1.0, delta=0.3)
     policy._replan(s)
     assert policy.gave_up
@@ -601,10 +600,10 @@ def test_a_slot_without_an_iso_pose_is_refused_at_once():
 @pytest.mark.parametrize("case_id", EASY_CASES)
 def test_mirror_multistart_parks_a_fixed_case_of_each_type(case_id):
     """Neither guide nor cost to go: multi-start shape seeds, SCP and branch and bound alone."""
-    policy = MirrorPolicy(multistart_config(time_limit_s=NO_NET))  # the registry's "mirror-multistart"
+    policy = MirrorPolicy(preset_config("mirror-multistart", time_limit_s=NO_NET))  # the registry's "mirror-multistart"
     info, _ = run_episode(gym.make("MirrorPark-v0").unwrapped, policy, case_id)
     assert info["is_success"], (info["failed_criterion"], info["vehicle_state"])
-    assert not any(s.detail.get("guided") for s in policy.stats)
+    assert type(policy.planner.strategy) is MultiStart
 
 
 @pytest.mark.slow
@@ -618,16 +617,16 @@ def test_mirror_multistart_parks_a_fixed_case_of_each_type(case_id):
 )
 def test_mirror_paper_parks_a_fixed_case_of_each_type(case_id):
     """The paper's method as written (fixed-angle linearisation, no guide) parks these."""
-    policy = MirrorPolicy(paper_config(time_limit_s=NO_NET))  # the registry's "mirror-paper"
+    policy = MirrorPolicy(preset_config("mirror-paper", time_limit_s=NO_NET))  # the registry's "mirror-paper"
     info, _ = run_episode(gym.make("MirrorPark-v0").unwrapped, policy, case_id)
     assert info["is_success"], (info["failed_criterion"], info["vehicle_state"])
-    assert not any(s.detail.get("guided") for s in policy.stats)
+    assert type(policy.planner.strategy) is PaperMultiStart
 
 
 def test_mirror_paper_refines_four_candidates_in_parallel_slots_and_two_elsewhere():
     """In parallel slots the shape seeds' ranking misleads the paper's model: here the third
     candidate refined is the cheapest plan by far, and with it the car parks."""
-    policy = MirrorPolicy(paper_config(time_limit_s=NO_NET))
+    policy = MirrorPolicy(preset_config("mirror-paper", time_limit_s=NO_NET))
     info, _ = run_episode(gym.make("MirrorPark-v0").unwrapped, policy, "parallel_rw4.50_sl7.12_sw2.50_th+20_y2.00")
     assert info["is_success"], (info["failed_criterion"], info["vehicle_state"])
     costs = [c for _, c, _ in policy.stats[0].detail["candidates"]]
@@ -636,7 +635,7 @@ def test_mirror_paper_refines_four_candidates_in_parallel_slots_and_two_elsewher
 
     tried = []
     for parallel in (4, None):  # a reverse slot: the parallel setting changes nothing
-        policy = MirrorPolicy(paper_config(time_limit_s=NO_NET, refine_candidates_parallel=parallel))
+        policy = MirrorPolicy(preset_config("mirror-paper", time_limit_s=NO_NET, refine_candidates_parallel=parallel))
         run_episode(gym.make("MirrorPark-v0").unwrapped, policy, "reverse_rw5.00_sl4.82_sw2.57_th-10_y3.50")
         tried.append(policy.stats[0].detail["candidates"])
     assert len(tried[0]) == 2 and tried[0] == tried[1]
@@ -743,7 +742,7 @@ def _standing_plan(planner, state, status: str, delta: float, stay_cost: float):
     xi = np.repeat(state.as_array()[None, :6], 4, axis=0)
     xi[:, 3:5] = 0.0
     xi[1:, 5] = delta
-    stats = PlanStats(0.001, status, detail={"stay_cost": stay_cost})
+    stats = PlanStats(0.001, status, detail={"progress": stay_cost})
     planner.last_stats = stats
     cmds = np.array([[0.0, delta]] * 3)
     return Plan(cmds, xi, Candidate(1, None), None, planner.line, xi, 1.0, (0.0, 0.0), True, stats)

@@ -338,11 +338,11 @@ def test_a_layout_coordinate_given_as_a_boolean_is_refused(tmp_path):
 
 
 def test_a_planner_setting_given_as_a_boolean_is_refused():
-    from planners.mirror.config import mirror_config
+    from planners.mirror.presets import preset_config
 
     with pytest.raises(ValueError, match="horizon: expected a number"):
-        mirror_config(horizon=True)
-    assert mirror_config(end_settled=False).core.end_settled is False  # a boolean where one belongs
+        preset_config("mirror", horizon=True)
+    assert preset_config("mirror", end_settled=False).core.end_settled is False  # a boolean where one belongs
 
 
 def test_a_layouts_name_never_writes_outside_the_report_folder(tmp_path):

@@ -12,9 +12,9 @@ import pytest
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env import VehicleParams
 from planners.base import run_episode
-from planners.mirror.config import guided_config, mirror_config
 from planners.mirror.mirror_line import band_margin, parallel_upper_bound, reach_lower_bound, switch_band
 from planners.mirror.policy import MirrorPolicy
+from planners.mirror.presets import preset_config
 
 P = VehicleParams.table_ii()
 R_MIN = 2.5 / math.tan(0.6)
@@ -104,7 +104,6 @@ SWITCHING = {
         "angle_rw4.00_sl4.82_sw3.07_th-10_y2.40",
     ),
 }
-CONFIGS = {"mirror": mirror_config, "mirror-guided": guided_config}
 
 
 @pytest.mark.parametrize(("planner", "case_id"), [(p, c) for p, cases in SWITCHING.items() for c in cases])
@@ -112,7 +111,7 @@ def test_every_executed_switch_in_the_natural_order_lies_in_its_plans_band(plann
     """Parallel: reverse in, then forward; reverse and angle: forward, then reverse in. The
     switch lies in Theorem 1's band (parallel) or beyond Eq. (5) / (6)'s bound, to 1 cm,
     measured where the car stood at the plan's switch step, against the goal it mirrored."""
-    policy = _Recording(CONFIGS[planner]())
+    policy = _Recording(preset_config(planner))
     info, _ = run_episode(gym.make("MirrorPark-v0"), policy, case_id)
     assert info["is_success"]
     g = policy.geometry
@@ -143,7 +142,7 @@ def test_the_switch_step_is_chosen_by_optimal_cost():
     switch steps); the plan used is the one of lowest optimal cost."""
     compared = []
     for case_id in (SWITCHING["mirror-guided"][1], SWITCHING["mirror-guided"][3]):
-        policy = _Recording(guided_config())
+        policy = _Recording(preset_config("mirror-guided"))
         run_episode(gym.make("MirrorPark-v0"), policy, case_id)
         compared += [p for p in policy.plans if len(p.stats.detail["candidates"]) > 1]
     assert len(compared) >= 2

@@ -11,8 +11,8 @@ from fixed_cases import EASY_CASES
 from test_mirror_planner import NO_NET, _boxes_problem
 
 import mirrorpark_env  # noqa: F401
-from planners.mirror.config import mirror_config
 from planners.mirror.planner import MirrorPlanner
+from planners.mirror.presets import preset_config
 from planners.mirror.solvers import BranchAndBound, PiqpQP
 from planners.mirror.stages import STAGES, StageClock
 
@@ -20,7 +20,7 @@ from planners.mirror.stages import STAGES, StageClock
 def _first_call(case_id: str, **changes):
     env = gym.make("MirrorPark-v0").unwrapped
     _, info = env.reset(options={"scenario": case_id})
-    planner = MirrorPlanner(info["geometry"], mirror_config(time_limit_s=NO_NET, **changes))
+    planner = MirrorPlanner(info["geometry"], preset_config("mirror", time_limit_s=NO_NET, **changes))
     planner.prepare()
     plan = planner.plan(info["vehicle_state"])
     return plan, planner.last_stats

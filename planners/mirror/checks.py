@@ -17,7 +17,7 @@ from ..common.brake import BrakeRollout
 from ..common.clearance import gap_kernel, gaps, required_gap
 from ..common.tracker import hold_accel
 from .config import CoreConfig
-from .cost import Terminal, terminal_for, true_cost
+from .cost import Terminal, merit, terminal_for, true_cost
 from .frames import XI_A, XI_D, XI_V, real_commands
 from .mirror_line import MirrorLine
 from .plans import Candidate, Plan
@@ -110,10 +110,8 @@ class Checks:
     def merit(self, real_half: np.ndarray, goal: np.ndarray, theta_t: float, pen: np.ndarray | None = None) -> float:
         """True cost of a rollout plus the exact penalty on its footprint's penetration
         (``pen``: its ``penetration``, if already computed)."""
-        cfg = self.cfg
-        cost, _, _ = self.true_cost(real_half[:: cfg.model_substeps], goal, theta_t)
-        pen = (self.penetration(real_half) if pen is None else pen).max(axis=1)
-        return cost + cfg.w_slack * float(np.clip(pen + cfg.obstacle_margin, 0, None).sum())
+        cost, _, _ = self.true_cost(real_half[:: self.cfg.model_substeps], goal, theta_t)
+        return merit(self.cfg, cost, (self.penetration(real_half) if pen is None else pen).max(axis=1))
 
     def settled(self, real_half: np.ndarray, goal: np.ndarray, theta_t: float) -> bool:
         """The rollout ends standing this close to its goal: another SCP round would only polish it."""

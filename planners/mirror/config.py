@@ -2,29 +2,39 @@
 
 A planner is the core (``CoreConfig``: the model, the QP's weights, SCP, branch and bound,
 the checks) plus one strategy with its own small config: which candidates a call solves
-and how it picks one. The presets at the bottom are the registry's planners; each takes
-keyword overrides of either part (``paper_config(time_limit_s=60, paper_first="nominal")``).
+and how it picks one. The registry's planners are the presets of ``presets.py``; each
+takes keyword overrides of either part
+(``preset_config("mirror-paper", time_limit_s=60, paper_first="nominal")``).
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 from pydantic import Field
 
 from mirrorpark_env.config import StrictModel
 
 
+class PriceConfig(StrictModel):
+    """What driving costs, in metres of driving: the one set of weights by which a planner
+    ranks paths (``cost.py`` prices every term; the cost to go, the guide, the seeds and the
+    plans of a call all use their planner's)."""
+
+    reverse_cost: float = Field(0.5, ge=0)  # extra per metre reversed
+    steer_cost: float = Field(0.05, ge=0)  # extra per metre at full lock: straight wins ties, no needless S-bends
+    switch_cost: float = Field(3.0, ge=0)  # per direction switch
+    penetration_cost: float = Field(100.0, ge=0)  # per metre of footprint penetration, summed over a rollout's steps
+
+
 class CostToGoConfig(StrictModel):
-    """Lattice and prices of the cost to go (lengths in m)."""
+    """Lattice and price of the cost to go (lengths in m)."""
 
     xy_resolution: float = Field(0.15, gt=0.01, le=2)
     headings: int = Field(72, ge=8, le=360)  # heading cells in a full turn
     steer_fraction: float = Field(0.9, gt=0, le=1)  # moves turn at this fraction of the curvature limit
     clearance: float = Field(0.05, ge=0, le=1)  # gap every lattice pose and move midpoint keeps
-    reverse_cost: float = Field(0.5, ge=0)  # extra per metre reversed
-    steer_cost: float = Field(0.05, ge=0)  # extra per metre at full lock: straight wins ties, no needless S-bends
-    switch_cost: float = Field(3.0, ge=0)  # per direction switch
+    price: PriceConfig = PriceConfig()
     margin: float = Field(10.0, gt=0, le=50)  # [m] along the road beyond the slot
     start_margin: float = Field(3.0, ge=0, le=50)  # [m] the lattice reaches this far around the start
     # Exact multi-point turns out of the slot from the target (arcs per turn, 0: none): V's
@@ -44,6 +54,21 @@ class CostToGoConfig(StrictModel):
     finish_position: float = Field(50.0, ge=0)
     finish_heading: float = Field(30.0, ge=0)
     finish_cap: float = Field(20.0, ge=0)
+
+
+class GuideConfig(StrictModel):
+    """Settings of the guide search (lengths in m, angles in rad)."""
+
+    steer_fraction: float = Field(0.9, gt=0, le=1)  # paths turn at this fraction of the curvature limit
+    sample_step: float = Field(0.1, gt=0, le=1)  # spacing of the fine collision check
+    coarse_step: float = Field(0.3, gt=0, le=3)  # spacing of the first, cheap check
+    gap: float = Field(0.04, gt=0, le=1)  # clearance every fine sample keeps to the obstacles
+    # Its paths' price: length, reversing and switches (it does not price steering)
+    price: PriceConfig = PriceConfig(steer_cost=0.0)
+    max_checked: int = Field(24, ge=1)  # candidate paths checked per call
+    start_gap: float = Field(0.01, gt=0, le=1)  # (or to the start's own gap, if smaller): room to leave a kerb
+    in_slot_turns: bool = True  # tails that park by back-and-forth arcs inside the slot
+    in_slot_arcs: int = Field(12, ge=1, le=100)  # arcs of each such multi-point turn, at most
 
 
 class CoreConfig(StrictModel):
@@ -110,7 +135,7 @@ class AimedConfig(StrictModel):
     heading cells are 3 deg (measured against 3 and 8 m, docs/mirror_planner.md)."""
 
     kind: Literal["aimed"] = "aimed"
-    lattice: CostToGoConfig = CostToGoConfig(headings=120, switch_cost=5.0)
+    lattice: CostToGoConfig = CostToGoConfig(headings=120, price=PriceConfig(switch_cost=5.0))
     candidates: int = Field(3, ge=1, le=20)  # switch candidates refined where the cost to go is blind
     updates: int = Field(2, ge=1, le=10)  # solves of the leading candidate, its goal moved down V each time
     iterations: int = Field(3, ge=1, le=100)  # SCP rounds per solve
@@ -180,68 +205,6 @@ class MirrorPlannerConfig(StrictModel):
 
     core: CoreConfig = CoreConfig()
     strategy: StrategyConfig = AimedConfig()
-
-
-def _preset(core: dict[str, Any], strategy: StrictModel, changes: dict[str, Any]) -> MirrorPlannerConfig:
-    """The preset with ``changes`` applied to whichever part has the field; an unknown
-    field is an error naming it and the fields allowed."""
-    core_fields, strategy_fields = set(CoreConfig.model_fields), set(type(strategy).model_fields) - {"kind"}
-    unknown = sorted(set(changes) - core_fields - strategy_fields)
-    if unknown:
-        raise ValueError(
-            f"{type(strategy).__name__}: unknown field(s) {', '.join(unknown)}; "
-            f"allowed: {', '.join(sorted(core_fields | strategy_fields))}"
-        )
-    core = {**core, **{k: v for k, v in changes.items() if k in core_fields}}
-    kept = strategy.model_dump(exclude_defaults=True)
-    strat = {**kept, **{k: v for k, v in changes.items() if k in strategy_fields}}
-    return MirrorPlannerConfig(core=CoreConfig(**core), strategy=type(strategy)(**strat))
-
-
-def mirror_config(**changes) -> MirrorPlannerConfig:
-    """``mirror``, the default: candidates aimed and compared by a cost to go."""
-    return _preset({}, AimedConfig(), changes)
-
-
-def cold_config(**changes) -> MirrorPlannerConfig:
-    """``mirror-cold``: ``mirror`` without any path as a warm start; the ablation that shows
-    what the warm start adds."""
-    return _preset({}, ColdConfig(), changes)
-
-
-# The guided and multi-start planners predate the cost to go's settled ends: their plans may
-# end braking, their SCP stops within 6 cm and 0.02 rad, and one terminal weight serves every
-# slot (as Eq. 33 has it).
-# No budget per call either: their calls are bounded by their candidates' node budgets alone.
-_GUIDED_CORE = {
-    "end_settled": False,
-    "settle_position": 0.06,
-    "settle_heading": 0.02,
-    "lateral_window": 0.0,
-    "call_qp_budget": None,
-}
-
-
-def guided_config(**changes) -> MirrorPlannerConfig:
-    """``mirror-guided``: the geometric guide chooses each plan's manoeuvre, switch and goal;
-    the QP where on the mirror line the car switches."""
-    return _preset(_GUIDED_CORE, GuidedConfig(), changes)
-
-
-def multistart_config(**changes) -> MirrorPlannerConfig:
-    """``mirror-multistart``: neither guide nor cost to go; shape seeds compared by their
-    optimal cost toward the mirrored target."""
-    return _preset(_GUIDED_CORE, MultistartConfig(), changes)
-
-
-def paper_config(**changes) -> MirrorPlannerConfig:
-    """``mirror-paper``: the paper's method as written, on the multi-start. Algorithm I runs
-    up to 12 rounds per candidate, twice the multi-start's: its rounds also wait for the
-    model's speeds and angle to settle (32.8 % of the ablation's cases against 27.6 % with 6).
-    A car still creeping (under 5 cm/s) against a candidate's gear may stop first: its plans
-    end with the lag still pushing, and the gear's bound from step 1 left it no plan the
-    other way (docs/mirror_planner.md)."""
-    return _preset({**_GUIDED_CORE, "max_iterations": 12, "stop_first_speed": 0.05}, PaperConfig(), changes)
 
 
 class MirrorPolicyConfig(StrictModel):

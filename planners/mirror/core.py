@@ -1,100 +1,75 @@
 """The parts of a mirror planner that every strategy shares, assembled once per slot.
 
-The planning model and its rollouts, the QP of a round (``qp.py``) with its solvers, the
-mirror line, the checks, the shape seeds and the candidate solver (``scp.py``). A strategy
-(``strategies/``) decides which candidates a call solves and which plan it returns; it
-records the call's statistics through ``finish``.
+The mirror lines, the planning model and its rollouts, the QP of a round (``qp.py``) with
+its solvers, the checks, the shape seeds, the candidate solver (``scp.py``) and the call's
+bookkeeping (``stages.py``: its clock and work budget). A strategy (``strategies/``)
+receives the parts it uses when it is built and decides which candidates a call solves;
+the planner (``planner.py``) owns the call.
 """
 
 from __future__ import annotations
 
-import math
-import time
-from dataclasses import replace
+from dataclasses import dataclass
 
-import numpy as np
-
-from mirrorpark_env.angles import unwrap_near
 from mirrorpark_env.scenario import ScenarioGeometry
-from mirrorpark_env.vehicle import TruthModel
 
-from ..base import PlanStats
 from .checks import Checks
 from .config import CoreConfig
-from .frames import real_commands
-from .linearisation import RoundsFactory
-from .mirror_line import MirrorLine, mirror_line
+from .linearisation import RoundParts, RoundsFactory
+from .mirror_line import SlotLines
 from .model import PlanningModel
 from .obstacles import ObstacleRows
-from .plans import Candidate, Plan
 from .qp import MirrorQP
+from .rollouts import Rollouts
 from .scp import SCP
 from .seeds import ShapeSeeds
 from .solvers import BranchAndBound, PiqpQP
-from .stages import StageClock
+from .stages import CallBudget, StageClock
 
 
-class CallBudget:
-    """QP solves left to the current call (``CoreConfig.call_qp_budget``; None: no limit)."""
-
-    def __init__(self, limit: int | None):
-        self.limit = limit
-        self.left: float = math.inf
-
-    def reset(self) -> None:
-        self.left = math.inf if self.limit is None else self.limit
-
-    def spend(self, solves: int) -> None:
-        self.left -= solves
-
-    @property
-    def spent(self) -> bool:
-        return self.left <= 0
-
-
+@dataclass(frozen=True, eq=False)
 class PlannerCore:
-    """A slot's planning parts under ``cfg``, with candidates solved by ``rounds``' linearisation."""
+    """A slot's planning parts under ``cfg`` (built by ``build_core``)."""
 
-    def __init__(self, geometry: ScenarioGeometry, cfg: CoreConfig, rounds: RoundsFactory):
-        self.g, self.p, self.cfg = geometry, geometry.vehicle, cfg
-        self.N = cfg.horizon
-        self.model = PlanningModel(self.p, cfg.dt, cfg.model_substeps)
-        self.coarse = TruthModel(self.p, cfg.dt, cfg.dt / cfg.model_substeps)  # the planning model's rollouts
-        e = cfg.qp_tolerance
-        self.qp_backend = PiqpQP(e, 0.1 * e, kkt_solver=cfg.kkt_solver, eps_gap=(e, 0.1 * e))
-        self.miqp = BranchAndBound(self.qp_backend, cfg.node_limit, cfg.time_limit_s)
-        self.line = mirror_line(geometry, margin=cfg.mirror_margin)
-        self.qp = MirrorQP(self.p, cfg, ObstacleRows(geometry, cfg.obstacle_margin, cfg.horizon, cfg.model_substeps))
-        self.checks = Checks(geometry, cfg)
-        self.shape_seeds = ShapeSeeds(geometry, cfg, self.coarse)
-        self.scp = SCP(self, rounds)
-        self.last_stats: PlanStats | None = None  # the latest call's, a failed one's too
-        self.clock = StageClock()  # the current call's time per stage (``stages.py``)
-        self.budget = CallBudget(cfg.call_qp_budget)  # the current call's QP solves left
+    geometry: ScenarioGeometry
+    cfg: CoreConfig
+    lines: SlotLines
+    model: PlanningModel
+    rollouts: Rollouts
+    qp: MirrorQP
+    qp_solver: PiqpQP
+    miqp: BranchAndBound
+    checks: Checks
+    seeds: ShapeSeeds
+    scp: SCP
+    clock: StageClock  # the current call's time per stage
+    budget: CallBudget  # the current call's QP solves left
 
-    def line_from(self, theta: float) -> MirrorLine:
-        """The mirror line for a plan from heading ``theta``: Theorem 1's (parallel), else
-        Eqs. (5), (6) bound by the heading change still to go."""
-        if self.line.fixed:
-            return self.line
-        psi = min(abs(unwrap_near(self.g.target[2], theta) - theta), math.pi / 2)
-        return mirror_line(self.g, psi=psi, margin=self.cfg.mirror_margin)
 
-    def rollout_half(self, xi0: np.ndarray, u_planned: np.ndarray, cand: Candidate) -> np.ndarray:
-        """Real states at every half step: (2N + 1, 6); even rows are the control steps."""
-        sub = self.coarse.rollout(xi0, real_commands(u_planned, cand))[:, :6]
-        return np.concatenate([xi0[None], sub])
-
-    def rollout(self, xi0: np.ndarray, u_planned: np.ndarray, cand: Candidate) -> np.ndarray:
-        """Real states at the control steps when executing planned commands (Eq. 42 after the switch)."""
-        return self.rollout_half(xi0, u_planned, cand)[:: self.cfg.model_substeps]
-
-    def finish(self, t0: float, status: str, totals: dict, cost: float, detail: dict, best: Plan | None) -> Plan | None:
-        """Record a call's statistics (``last_stats``, with the time per stage in
-        ``detail["stages_ms"]``) and return its plan carrying them."""
-        detail = {**detail, "stages_ms": self.clock.ms(), "budget_spent": self.budget.spent}
-        stats = PlanStats(
-            time.perf_counter() - t0, status, totals["iterations"], totals["qp_solves"], totals["nodes"], cost, detail
-        )
-        self.last_stats = stats
-        return replace(best, stats=stats) if best is not None else None
+def build_core(geometry: ScenarioGeometry, cfg: CoreConfig, rounds: RoundsFactory) -> PlannerCore:
+    """The parts for ``geometry`` under ``cfg``, candidates solved by ``rounds``' linearisation."""
+    p = geometry.vehicle
+    rollouts = Rollouts(p, cfg.dt, cfg.model_substeps)
+    e = cfg.qp_tolerance
+    qp_solver = PiqpQP(e, 0.1 * e, kkt_solver=cfg.kkt_solver, eps_gap=(e, 0.1 * e))
+    miqp = BranchAndBound(qp_solver, cfg.node_limit, cfg.time_limit_s)
+    lines = SlotLines(geometry, cfg.mirror_margin)
+    checks = Checks(geometry, cfg)
+    seeds = ShapeSeeds(geometry, cfg, rollouts.truth)
+    model = PlanningModel(p, cfg.dt, cfg.model_substeps)
+    parts = RoundParts(cfg, model, checks, seeds)
+    qp = MirrorQP(p, cfg, ObstacleRows(geometry, cfg.obstacle_margin, cfg.horizon, cfg.model_substeps))
+    clock, budget = StageClock(), CallBudget(cfg.call_qp_budget)
+    scp = SCP(
+        geometry=geometry,
+        lines=lines,
+        parts=parts,
+        rollouts=rollouts,
+        qp=qp,
+        qp_solver=qp_solver,
+        miqp=miqp,
+        budget=budget,
+        clock=clock,
+        rounds=rounds,
+    )
+    return PlannerCore(geometry, cfg, lines, model, rollouts, qp, qp_solver, miqp, checks, seeds, scp, clock, budget)

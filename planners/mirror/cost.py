@@ -1,6 +1,8 @@
 """The planner's cost, every term once: the QP's objective (Eq. 33 toward the mirrored
-target), the true cost of a rollout that SCP and the checks score by, the end's weight
-across a tight slot, and the price by which the cost-to-go strategy compares candidates.
+target) with its exact penalty, the true cost of a rollout and the merit that SCP and the
+checks score by, the end's weight across a tight slot, and the price of driving
+(``PriceConfig``'s weights, in metres) by which the cost to go, the guide, the seeds and
+the cost-to-go strategy's candidates are ranked.
 
 The QP's objective is sum_r w_r (L_r z + k_r)^2 over residual rows (``cost_pattern``:
 L, w; ``offsets``: k): the running pose error toward the mirrored target, the end's pose
@@ -30,12 +32,13 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
+from mirrorpark_env.angles import unwrap_near
 from mirrorpark_env.config import ParkingType
 from mirrorpark_env.criteria import SuccessCriteria
 from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import footprint
 
-from .config import CoreConfig
+from .config import CoreConfig, CostToGoConfig, PriceConfig
 from .frames import XI_A, XI_TH, XI_X, XI_Y
 from .solvers import CscPattern
 from .variables import iu, ix, switch_index, x_index
@@ -149,17 +152,71 @@ def true_cost(
     return cfg.w_terminal_position * pos_err**2 + cfg.w_terminal_heading * th_err**2 + run, pos_err, th_err
 
 
-def driven_cost(real: np.ndarray, reverse_cost: float) -> float:
-    """Metres driven by states (x, y, theta, v, ...), each reversed metre at 1 + ``reverse_cost``."""
+def merit(cfg: CoreConfig, cost: float, pen: np.ndarray) -> float:
+    """A rollout's true ``cost`` plus the exact penalty on its footprint's largest
+    penetration per step (``pen``), by the QP's own slack weight (``slack_weights``)."""
+    return cost + cfg.w_slack * float(np.clip(pen + cfg.obstacle_margin, 0, None).sum())
+
+
+def band_penalty(cfg: CoreConfig, outside: float) -> float:
+    """The exact penalty on a switch ``outside`` [m] its band, by the QP's slack weight."""
+    return cfg.w_slack * outside
+
+
+def slack_weights(cfg: CoreConfig, n: int) -> np.ndarray:
+    """The QP's linear cost on each of ``n`` slacks of its soft rows: the exact penalty."""
+    return np.full(n, cfg.w_slack)
+
+
+# -- the price of driving, in metres ---------------------------------------------------
+def move_cost(price: PriceConfig, length: float, reverse: bool, steered: bool) -> float:
+    """A move of ``length`` metres, reversed or not, at full lock or straight."""
+    return length * (1.0 + (price.reverse_cost if reverse else 0.0) + (price.steer_cost if steered else 0.0))
+
+
+def driven_metres(price: PriceConfig, ds: np.ndarray, reverse: np.ndarray) -> np.ndarray:
+    """Each step's priced length: ``ds`` metres, those where ``reverse`` at 1 + ``reverse_cost``."""
+    return ds * np.where(reverse, 1.0 + price.reverse_cost, 1.0)
+
+
+def steering_cost(price: PriceConfig, fraction: np.ndarray | float, length: np.ndarray | float):
+    """Extra for ``length`` metres turned at ``fraction`` of full lock."""
+    return price.steer_cost * fraction * length
+
+
+def switch_price(price: PriceConfig, switches):
+    """``switches`` direction switches (a count, or counts)."""
+    return price.switch_cost * switches
+
+
+def path_price(price: PriceConfig, ds: np.ndarray, reverse: np.ndarray, switches: int) -> float:
+    """Steps of ``ds`` metres (reversed where ``reverse``) through ``switches`` switches."""
+    return float(ds.sum()) + price.reverse_cost * float(ds[reverse].sum()) + price.switch_cost * switches
+
+
+def plan_price(price: PriceConfig, real: np.ndarray, switches: int, end_value: float) -> float:
+    """J, by which the cost-to-go strategy compares optimised plans: the states' (x, y,
+    theta, v, ...) path, reversed where v < 0, through ``switches``, plus the cost to go
+    where it ends."""
     d = np.diff(real[:, :2], axis=0)
     ds = np.hypot(d[:, 0], d[:, 1])
-    return float(ds.sum()) + reverse_cost * float(ds[real[1:, 3] < 0].sum())
+    return path_price(price, ds, real[1:, 3] < 0, switches) + end_value
 
 
-def plan_price(real: np.ndarray, switches: int, end_value: float, reverse_cost: float, switch_cost: float) -> float:
-    """J, by which the cost-to-go strategy compares optimised plans: driven metres (reversing
-    dearer), a price per direction switch, and the cost to go where the plan ends."""
-    return driven_cost(real, reverse_cost) + switch_cost * switches + end_value
+def penetration_price(price: PriceConfig, pen: np.ndarray) -> float:
+    """A rollout's footprint penetration (its largest per step, ``pen``) priced: a seed that
+    runs into an obstacle ranks behind the clear ones."""
+    return price.penetration_cost * float(np.clip(pen, 0, None).sum())
+
+
+def finish_price(cfg: CostToGoConfig, v: float, pose, target) -> float:
+    """V at ``pose`` near the target, where V's cells are too coarse to rank poses: the pose
+    error in metres of driving, at most ``finish_cap`` above V."""
+    tx, ty, tth = target
+    e = cfg.finish_position * math.hypot(pose[0] - tx, pose[1] - ty) + cfg.finish_heading * abs(
+        unwrap_near(tth, pose[2]) - pose[2]
+    )
+    return v + min(max(e - v, 0.0), cfg.finish_cap)
 
 
 @lru_cache(maxsize=256)

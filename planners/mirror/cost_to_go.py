@@ -28,6 +28,7 @@ from ..common.path import arc
 from ..common.slot_cache import SlotCache
 from ..common.turns import turn_chains
 from .config import CostToGoConfig
+from .cost import driven_metres, move_cost, steering_cost, switch_price
 from .cost_to_go_search import _ahead, _between, _entry_rows, _first_gear, _search, _straight
 
 
@@ -60,9 +61,7 @@ class CostToGo:
         moves = [(gr, kk) for gr in (1.0, -1.0) for kk in (0.0, k, -k)]
         self.kappa = np.array([kk for _, kk in moves])
         self.gear = np.array([int(gr) for gr, _ in moves], np.int64)
-        self.cost = self.step * np.array(
-            [1.0 + (cfg.reverse_cost if gr < 0 else 0.0) + (cfg.steer_cost if kk else 0.0) for gr, kk in moves]
-        )
+        self.cost = np.array([move_cost(cfg.price, self.step, gr < 0, kk != 0.0) for gr, kk in moves])
         self.target_state = self._state(-self.i0, -self.j0, 0)
         self.tails: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # state -> tail (``_sources``)
         self.entry_rows: dict[int, np.ndarray] = {}  # state -> its entry's path (``_entries``)
@@ -71,7 +70,7 @@ class CostToGo:
         fast = gap_kernel(geometry.checker)
         self.V, self.P, self.next, peak = _search(
             self.kappa, self.gear, self.cost, self.step, grid, sources, source_pose, source_v,
-            cfg.switch_cost, cfg.clearance, fast.args,
+            switch_price(cfg.price, 1), cfg.clearance, fast.args,
         )  # fmt: skip
         if peak > 2 * self.V.shape[0] + 2 * len(sources) + 16:  # never seen; a wrong V would be silent
             raise RuntimeError(f"CostToGo: the search's heap overflowed ({peak} entries)")
@@ -100,8 +99,8 @@ class CostToGo:
                 arc_of = np.searchsorted(np.asarray(ends), np.arange(1, len(chain)))  # arc of the step to pose j + 1
                 out_gear = np.where(arc_of % 2 == 0, 1.0, -1.0) * _first_gear(chain)
                 park = -out_gear  # the gear driven back in
-                step = ds * np.where(park < 0, 1.0 + cfg.reverse_cost, 1.0)
-                cum = np.concatenate([[0.0], np.cumsum(step)]) + cfg.switch_cost * np.concatenate([[0], arc_of])
+                step = driven_metres(cfg.price, ds, park < 0)
+                cum = np.concatenate([[0.0], np.cumsum(step)]) + switch_price(cfg.price, np.concatenate([[0], arc_of]))
                 gears = np.concatenate([[park[0]], park])  # gears[m]: of the step from pose m back to m - 1
                 i, j, h, inside = self.index(chain)
                 for m in range(1, len(chain)):
@@ -127,7 +126,7 @@ class CostToGo:
                 first = gears[0]
                 self.tails[st] = (tail, gears, cum)
             # arrived in the other gear than the first step's, the car first switches
-            vals[n] = [c + (cfg.switch_cost if first > 0 else 0.0), c + (cfg.switch_cost if first < 0 else 0.0)]
+            vals[n] = [c + switch_price(cfg.price, int(first > 0)), c + switch_price(cfg.price, int(first < 0))]
         return states, poses, vals
 
     def _entries(self) -> list[tuple[int, float, np.ndarray]]:
@@ -141,7 +140,7 @@ class CostToGo:
         length = rows[:, 4] + rows[:, 6] + rows[:, 7]  # of each entry's path
         park_rev = rows[:, 3] > 0  # driven out forward: parked in reverse
         steer = np.abs(rows[:, 5]) * self.radius  # of the lattice's full lock
-        cost = length * np.where(park_rev, 1.0 + cfg.reverse_cost, 1.0) + cfg.steer_cost * steer * rows[:, 6]
+        cost = driven_metres(cfg.price, length, park_rev) + steering_cost(cfg.price, steer, rows[:, 6])
         st = (i * self.ny + j) * self.nh + h
         keep = np.flatnonzero(inside & (length > 0))
         if len(keep) == 0:  # the target itself is not clear by ``clearance``: no entries
@@ -235,7 +234,7 @@ class CostToGo:
             return v0
         best = math.inf
         for p, v, _ in self._moves_from(pose, None, gap):
-            switch = self.cfg.switch_cost if gear is not None and self.gear[p] != gear else 0.0
+            switch = switch_price(self.cfg.price, int(gear is not None and self.gear[p] != gear))
             best = min(best, self.cost[p] + switch + v)
         return best
 

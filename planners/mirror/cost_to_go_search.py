@@ -114,10 +114,11 @@ def _entry_rows(tx, ty, tth, radius, ds, max_straight, clearance, gap_args):  # 
 
 @njit(cache=True)
 def _search(
-    kappa, gear, cost, step, grid, sources, source_pose, source_v, switch_cost, clearance, gap_args
+    kappa, gear, cost, step, grid, sources, source_pose, source_v, per_switch, clearance, gap_args
 ):  # pragma: no cover - compiled
     """Backward Dijkstra over nodes (cell, gear the car arrived in), each holding the exact
-    pose it was reached at (hybrid A*'s rule: a cell keeps its cheapest pose).
+    pose it was reached at (hybrid A*'s rule: a cell keeps its cheapest pose). Moves and
+    switches are priced by the caller (``cost[p]``, ``per_switch``: ``cost.py``).
 
     A node's predecessors are the poses from which one move (curvature ``kappa[p]``, gear
     ``gear[p]``, length ``step``, priced ``cost[p]``) ends exactly at its pose; one is kept
@@ -169,7 +170,7 @@ def _search(
             if not _clear(mx, my, mc, ms, clearance, front, rear, hw, normals, pmin, pmax, verts):
                 continue
             for gp in range(2):  # the gear the car arrived at q in: a switch if not p's
-                k = k0 + (switch_cost if gp != g2 else 0.0)
+                k = k0 + (per_switch if gp != g2 else 0.0)
                 if k < V[s, gp]:
                     V[s, gp] = k
                     P[s, gp, 0], P[s, gp, 1], P[s, gp, 2] = qx, qy, qth

@@ -23,9 +23,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from pydantic import Field
 
-from mirrorpark_env.config import StrictModel
 from mirrorpark_env.scenario import ParkingType, ScenarioGeometry
 
 from ..common import reeds_shepp
@@ -34,22 +32,9 @@ from ..common.path import Path, arc
 from ..common.reeds_shepp import ReedsShepp
 from ..common.slot_cache import SlotCache
 from ..common.turns import turn_chains
+from .config import GuideConfig
+from .cost import path_price
 from .mirror_line import parallel_dark_point
-
-
-class GuideConfig(StrictModel):
-    """Settings of the guide search (lengths in m, angles in rad)."""
-
-    steer_fraction: float = Field(0.9, gt=0, le=1)  # paths turn at this fraction of the curvature limit
-    sample_step: float = Field(0.1, gt=0, le=1)  # spacing of the fine collision check
-    coarse_step: float = Field(0.3, gt=0, le=3)  # spacing of the first, cheap check
-    gap: float = Field(0.04, gt=0, le=1)  # clearance every fine sample keeps to the obstacles
-    cusp_cost: float = Field(3.0, ge=0)  # [m] per direction switch
-    reverse_cost: float = Field(0.5, ge=0)  # extra cost per metre driven in reverse
-    max_checked: int = Field(24, ge=1)  # candidate paths checked per call
-    start_gap: float = Field(0.01, gt=0, le=1)  # (or to the start's own gap, if smaller): room to leave a kerb
-    in_slot_turns: bool = True  # tails that park by back-and-forth arcs inside the slot
-    in_slot_arcs: int = Field(12, ge=1, le=100)  # arcs of each such multi-point turn, at most
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,7 +158,7 @@ class GuideSearch:
         switches = int(np.count_nonzero(back[1:] != back[:-1]))
         if gear and len(back) and bool(back[0]) != (gear < 0):
             switches += 1
-        return float(ds.sum()) + self.cfg.reverse_cost * float(ds[back].sum()) + self.cfg.cusp_cost * switches
+        return path_price(self.cfg.price, ds, back, switches)
 
     def _gaps(self, poses: np.ndarray) -> np.ndarray:
         return gaps(self.checker, poses)

@@ -17,7 +17,8 @@ from ..base import PlanStats
 from ..common.path import Path
 from ..common.tracker import TrackerConfig
 from ..common.tracking import TrackingPolicy
-from .guide import GuideConfig, GuideSearch, prepared_search
+from .config import GuideConfig
+from .guide import GuideSearch, prepared_search
 
 
 class GuideOnlyPolicy(TrackingPolicy):

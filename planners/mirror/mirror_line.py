@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
+from mirrorpark_env.angles import unwrap_near
 from mirrorpark_env.scenario import ParkingType, ScenarioGeometry
 from mirrorpark_env.vehicle import VehicleParams
 
@@ -87,6 +88,21 @@ def mirror_line(geometry: ScenarioGeometry, psi: float | None = None, margin: fl
     if psi is None:
         psi = abs(tth)  # from heading 0 (along the road) to the target heading
     return MirrorLine((tx, ty), n, margin * reach_lower_bound(p, psi), False, psi)
+
+
+class SlotLines:
+    """A slot's mirror line, and the one for a plan from a given heading."""
+
+    def __init__(self, geometry: ScenarioGeometry, margin: float):
+        self.g, self.margin = geometry, margin
+        self.slot = mirror_line(geometry, margin=margin)
+
+    def from_heading(self, theta: float) -> MirrorLine:
+        """Theorem 1's line (parallel), else Eqs. (5), (6) bound by the heading change still to go."""
+        if self.slot.fixed:
+            return self.slot
+        psi = min(abs(unwrap_near(self.g.target[2], theta) - theta), math.pi / 2)
+        return mirror_line(self.g, psi=psi, margin=self.margin)
 
 
 def mirrored_target(target: tuple[float, float, float], switch_xy) -> tuple[float, float, float]:

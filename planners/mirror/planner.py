@@ -13,37 +13,29 @@ dynamics row of step s encodes (``FLIP``). Consequences, all linear for fixed s 
 - obstacle constraints are written on the real body: before s on p + R(theta) c, after s
   on 2 S - p + R(theta) c (the flipped body against obstacles reflected through S).
 
-A planner is a core (``core.py``: the parts every strategy shares, and ``scp.py``: one
-candidate solved by Algorithm I inside a linearisation loop) and a strategy
-(``strategies/``): which candidates a call solves and which plan it returns.
+A planner is the slot's parts (``core.py``: those every strategy shares, with ``scp.py``
+solving one candidate by Algorithm I inside a linearisation loop) and a strategy
+(``strategies/``, chosen by the config's preset, ``presets.py``): which candidates a call
+solves and which plan it returns. The planner owns the call: it resets the call's clock
+and budget, times it and records its statistics.
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import replace
+
+import numpy as np
 
 from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import VehicleState
 
 from ..base import PlanStats
 from .config import MirrorPlannerConfig
-from .core import PlannerCore
+from .core import build_core
 from .mirror_line import MirrorLine
 from .plans import Candidate, Plan
-from .strategies.aimed import AimedCandidates, ColdStart
-from .strategies.base import Strategy
-from .strategies.guided import Guided
-from .strategies.multistart import MultiStart
-from .strategies.paper import PaperMultiStart
-
-# Each strategy config's ``kind`` and the strategy it configures.
-STRATEGIES: dict[str, type[Strategy]] = {
-    "aimed": AimedCandidates,
-    "cold": ColdStart,
-    "guided": Guided,
-    "multistart": MultiStart,
-    "paper": PaperMultiStart,
-}
+from .presets import strategy_for
 
 
 class MirrorPlanner:
@@ -51,23 +43,15 @@ class MirrorPlanner:
 
     def __init__(self, geometry: ScenarioGeometry, config: MirrorPlannerConfig | None = None):
         self.cfg = config or MirrorPlannerConfig()
-        kind = STRATEGIES[self.cfg.strategy.kind]
-        self.core = PlannerCore(geometry, self.cfg.core, kind.rounds(self.cfg.strategy))
+        kind = strategy_for(self.cfg.strategy)
+        self.core = build_core(geometry, self.cfg.core, kind.rounds(self.cfg.strategy))
         self.strategy = kind(self.core, self.cfg.strategy)
+        self.last_stats: PlanStats | None = None  # the latest call's, a failed one's too
 
     @property
     def line(self) -> MirrorLine:
         """The slot's mirror line (Theorem 1 for parallel slots, Eqs. 5-6 otherwise)."""
-        return self.core.line
-
-    @property
-    def last_stats(self) -> PlanStats | None:
-        """The latest call's statistics, a failed one's too."""
-        return self.core.last_stats
-
-    @last_stats.setter
-    def last_stats(self, stats: PlanStats | None) -> None:
-        self.core.last_stats = stats
+        return self.core.lines.slot
 
     def prepare(self) -> None:
         """Build what depends on the slot alone, once per episode (the policy does it at
@@ -78,17 +62,26 @@ class MirrorPlanner:
         """Best collision-free plan from ``state``, or None; statistics of the call, a failed
         one included, in ``last_stats``. ``candidates``: solve these (the multi-start
         strategies only) instead of the strategy's own."""
-        t0 = time.perf_counter()
-        self.core.clock.reset()
-        self.core.budget.reset()
-        xi0 = state.as_array()
-        start = self.core.checks.start(xi0)
-        if candidates is None:
-            return self.strategy.plan(state, xi0, start, t0)
-        if not isinstance(self.strategy, MultiStart):
+        if candidates is not None and not self.strategy.takes_candidates:
             raise ValueError(f"candidates: only the multi-start strategies take them, not {self.cfg.strategy.kind!r}")
-        return self.strategy.plan_candidates(state, xi0, start, t0, candidates)
+        t0 = time.perf_counter()
+        core = self.core
+        core.clock.reset()
+        core.budget.reset()
+        xi0 = state.as_array()
+        out = self.strategy.plan(state, xi0, core.checks.start(xi0), candidates)
+        detail = {
+            **out.detail,
+            "progress": out.progress,
+            "safety_net": out.safety_net,
+            "stages_ms": core.clock.ms(),
+            "budget_spent": core.budget.spent,
+        }
+        t = out.tally
+        stats = PlanStats(time.perf_counter() - t0, out.status, t.iterations, t.qp_solves, t.nodes, out.cost, detail)
+        self.last_stats = stats
+        return replace(out.plan, stats=stats) if out.plan is not None else None
 
-    def rollout(self, xi0, u_planned, cand: Candidate):
+    def rollout(self, xi0: np.ndarray, u_planned: np.ndarray, cand: Candidate) -> np.ndarray:
         """Real states at the control steps when executing planned commands (Eq. 42 after the switch)."""
-        return self.core.rollout(xi0, u_planned, cand)
+        return self.core.rollouts.steps(xi0, u_planned, cand)

@@ -1,4 +1,5 @@
-"""What one planning call produces: the candidate manoeuvre and the plan in the real frame."""
+"""What one planning call produces: the candidate manoeuvre, the plan in the real frame and
+the work it took."""
 
 from __future__ import annotations
 
@@ -8,6 +9,18 @@ import numpy as np
 
 from ..base import PlanStats
 from .mirror_line import MirrorLine
+
+
+@dataclass(frozen=True)
+class Tally:
+    """Work done: SCP rounds, QP solves and branch-and-bound nodes (a call sums its solves')."""
+
+    iterations: int = 0
+    qp_solves: int = 0
+    nodes: int = 0
+
+    def __add__(self, other: Tally) -> Tally:
+        return Tally(self.iterations + other.iterations, self.qp_solves + other.qp_solves, self.nodes + other.nodes)
 
 
 @dataclass(frozen=True)

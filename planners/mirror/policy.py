@@ -73,7 +73,7 @@ class MirrorPolicy(Policy):
         self._failures = 0
         self._failed_at: np.ndarray | None = None  # standing state of the last failed call
         self._stood: list[np.ndarray | None] = []  # the last two calls' standing states
-        self._best = {"guide_cost": math.inf, "stay_cost": math.inf}
+        self._best = math.inf  # the lowest progress measure so far (the strategy's, ``Outcome.progress``)
         self._since_best = 0
         self._stuck = 0  # partial plans in a row that only turn the wheels of a standing car
 
@@ -148,12 +148,10 @@ class MirrorPolicy(Policy):
         self._failures = 0
         self._failed_at = None
         self.stats.append(plan.stats)
-        # Progress: the guide's cost to go (guided plans), else the cost of standing still.
-        detail = plan.stats.detail
-        key = "guide_cost" if detail.get("guided") else "stay_cost"
-        measure = detail.get(key, math.inf)
-        if measure < 0.99 * self._best[key]:
-            self._best[key], self._since_best = measure, 0
+        # Progress: the strategy's measure (the guide's cost to go, or the cost of standing still).
+        measure = plan.stats.detail.get("progress", math.inf)
+        if measure < 0.99 * self._best:
+            self._best, self._since_best = measure, 0
         else:
             self._since_best += 1
         # A partial plan that moves a standing car less than ``IDLE_TRAVEL`` is a safe stop

@@ -14,7 +14,7 @@ import scipy.sparse as sp
 from mirrorpark_env.vehicle import VehicleParams
 
 from .config import CoreConfig
-from .cost import Terminal, cost_pattern
+from .cost import Terminal, cost_pattern, slack_weights
 from .frames import FLIP, XI_A, XI_D, XI_TH, XI_V, XI_X, XI_Y, to_planned
 from .mirror_line import MirrorLine, SwitchBand
 from .model import NU, NX
@@ -76,7 +76,7 @@ class MirrorQP:
         self._switch_rows(rows, s, line, s is not None and mirror, band if s is not None else None)
         if theta_set and ref_real is not None:
             self.obstacles.add(rows, cand, ref_real, theta_set)
-        # Every row's lower side is soft: row + slack >= lower bound, slack >= 0 at w_slack
+        # Every row's lower side is soft: row + slack >= lower bound, slack >= 0 at ``cost.slack_weights``
         # per m (an exact penalty); the exact footprint check decides. Hard are the variable
         # bounds (a car rolling back has no forward plan, but for ``stop_first_speed``) and
         # the fixed line's upper side (a parallel switch at most 2 cm past it): there a
@@ -88,7 +88,7 @@ class MirrorQP:
         pattern, p_vals, t_vals = cost_pattern(cfg, s, terminal)[3]
         P = pattern.matrix(p_vals + (trust_scale if trust else 0.0) * t_vals, (nz, nz))
         A = self._eq_pattern(s).matrix(vals, (self._n_dyn_rows + 2, nz))
-        c = np.concatenate([c, np.full(n_s, cfg.w_slack)])
+        c = np.concatenate([c, slack_weights(cfg, n_s)])
         x_l = np.concatenate([x_l, np.zeros(n_s)])
         x_u = np.concatenate([x_u, np.full(n_s, np.inf)])
         qp = QP(P, c, A, b, G, h_l, np.array(rows.h_u, float), x_l, x_u)

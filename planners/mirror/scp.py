@@ -12,26 +12,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from mirrorpark_env.angles import unwrap_near
+from mirrorpark_env.scenario import ScenarioGeometry
 
 from .checks import Start, same_pose
-from .cost import linear_term
+from .cost import band_penalty, linear_term
 from .frames import XI_TH, real_commands, to_planned
-from .linearisation import RoundsFactory
-from .mirror_line import MirrorLine, SwitchBand, band_margin, switch_band
-from .plans import Candidate, Plan
-from .solvers import BranchAndBound
-
-EFFORT = ("iterations", "qp_solves", "nodes")  # a solve's work; a call sums its solves'
-
-
-def no_effort() -> dict[str, int]:
-    """Effort tallies, all zero (``EFFORT``)."""
-    return dict.fromkeys(EFFORT, 0)
+from .linearisation import RoundParts, RoundsFactory
+from .mirror_line import MirrorLine, SlotLines, SwitchBand, band_margin, switch_band
+from .plans import Candidate, Plan, Tally
+from .qp import MirrorQP
+from .rollouts import Rollouts
+from .solvers import BranchAndBound, PiqpQP
+from .stages import CallBudget, StageClock
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,12 +41,45 @@ class Reference:
     merit: float = math.nan
 
 
-class SCP:
-    """Solves candidates on a ``PlannerCore``'s parts with the rounds of ``rounds``."""
+@dataclass(frozen=True, eq=False)
+class Solved:
+    """One candidate's answer: its plan (None: no clear one confirmed by the truth model),
+    ``status`` ("ok", "infeasible", "failed"), the work, and ``partial``: a safe stop short
+    of the best iterate's first contact, where there is one. ``converged``: its SCP stopped
+    before its round cap; ``cut_short``: a branch and bound ran out of nodes; ``safety_net``:
+    one hit its wall-clock limit."""
 
-    def __init__(self, core: Any, rounds: RoundsFactory):
-        self.core, self.rounds = core, rounds
-        self.cfg, self.p, self.checks, self.qp = core.cfg, core.p, core.checks, core.qp
+    plan: Plan | None
+    status: str
+    tally: Tally
+    partial: Plan | None = None
+    converged: bool = False
+    cut_short: bool = False
+    safety_net: bool = False
+
+
+class SCP:
+    """Solves candidates on a slot's planning parts, each with the rounds of ``rounds``."""
+
+    def __init__(
+        self,
+        *,
+        geometry: ScenarioGeometry,
+        lines: SlotLines,
+        parts: RoundParts,
+        rollouts: Rollouts,
+        qp: MirrorQP,
+        qp_solver: PiqpQP,
+        miqp: BranchAndBound,
+        budget: CallBudget,
+        clock: StageClock,
+        rounds: RoundsFactory,
+    ):
+        self.g, self.cfg, self.p = geometry, parts.cfg, geometry.vehicle
+        self.parallel = lines.slot.fixed  # Theorem 1's line: parallel parking
+        self.parts, self.checks, self.rollouts, self.qp = parts, parts.checks, rollouts, qp
+        self.qp_solver, self.miqp, self.budget, self.clock, self.rounds = qp_solver, miqp, budget, clock, rounds
+        self.first_direction = parts.seeds.first_direction
 
     def solve(
         self,
@@ -63,27 +92,24 @@ class SCP:
         iterations: int | None = None,
         band: bool = False,
         miqp: BranchAndBound | None = None,
-    ) -> tuple[Plan | None, dict]:
+    ) -> Solved:
         """The candidate (direction, switch step) toward ``goal`` from ``xi0``.
 
         ``band``: the switch lies in the band of ``switch_band`` toward ``goal`` (linearised
         at each reference); otherwise on ``line`` in the natural order. ``iterations``: the
         round cap (default the config's ``max_iterations``; a switch still outside its band
-        may go on to that). ``miqp``: the branch and bound to use (default the core's).
-        Returns the plan (None if no clear one is confirmed by the truth model) and the
-        candidate's statistics, with ``"partial"``: a safe stop short of the first contact,
-        where there is one.
+        may go on to that). ``miqp``: the branch and bound to use (default the planner's).
         """
-        cfg, core = self.cfg, self.core
+        cfg, clock = self.cfg, self.clock
         theta_t = unwrap_near(goal[2], xi0[XI_TH])
         terminal = self.checks.terminal_toward(goal)
         c = linear_term(cfg, cand.switch, goal, theta_t, terminal)
         theta_set: dict[tuple[int, int], None] = {}  # (step, obstacle) pairs with obstacle rows
         clear_plans: list[Plan] = []  # clear on the planning model; verified on the truth model at the end
-        st = {**no_effort(), "status": "failed"}
-        mirror = cand.direction == core.shape_seeds.first_direction and not band
-        clock = core.clock
-        rounds = self.rounds(core, xi0, cand, theta_t, goal)
+        work = _Work(miqp or self.miqp)
+        status, converged = "failed", False
+        mirror = cand.direction == self.first_direction and not band
+        rounds = self.rounds(self.parts, xi0, cand, theta_t, goal)
         with clock("seeds"):
             first = rounds.first(seed, line)
         ref = None
@@ -94,7 +120,7 @@ class SCP:
         for it in range(cfg.max_iterations):
             if it >= cap and (clear_plans or not band):
                 break  # a switch outside its band: more rounds (to max_iterations) to move it in
-            st["iterations"] += 1
+            work.iterations += 1
             with clock("build"):
                 lin = rounds.model(ref, theta_set, start)
                 ref_real = ref.real if ref is not None else None
@@ -114,36 +140,35 @@ class SCP:
                     terminal=terminal,
                 )
             with clock("solve"):
-                x = self._solve(qp, disj, active, preferred, st, miqp or core.miqp)
+                x = self._solve(qp, disj, active, preferred, work)
             if x is None:
-                st["status"] = "infeasible"
+                status = "infeasible"
                 break
             u_planned = x[self.qp.u_index]
             with clock("checks"):
-                real = core.rollout_half(xi0, u_planned, cand)
+                real = self.rollouts.half(xi0, u_planned, cand)
                 new, hits, usable = self._score(real, u_planned, cand, goal, theta_t, start, line, band, clear_plans)
             for i, k in hits:  # Algorithm I on the new solution too, accepted or not
                 theta_set[(i, k)] = None
-            ref, stop = rounds.after(ref, new, hits, usable, st)
+            ref, stop, converged = rounds.after(ref, new, hits, usable)
             if stop:
                 break
+        partial = None
         with clock("checks"):
             best = self._confirmed(xi0, clear_plans, start)
             if best is not None:
-                st["status"] = "ok"
+                status = "ok"
             elif ref is not None:  # no clear plan: the best iterate's safe start, if any
-                st["partial"] = self._safe_stop(xi0, cand, ref, goal, theta_t, start, line)
-        return best, st
+                partial = self._safe_stop(xi0, cand, ref, goal, theta_t, start, line)
+        return Solved(best, status, work.tally(), partial, converged, work.cut_short, work.safety_net)
 
     def _band_args(self, cand: Candidate, goal: np.ndarray) -> tuple[int, float, float | None]:
         """(gear after the switch, margin, slot width or None) of a plan's switch band: the
         reach bound (Eqs. 1, 5, 6) toward the plan's goal, and Theorem 1's kerb bound
         (Eq. 2) where a parallel plan reverses into the slot and then aims at the target."""
-        core = self.core
-        parallel = core.line.fixed  # Theorem 1's line: parallel parking
-        into_slot = parallel and cand.direction < 0 and same_pose(goal, core.g.target)
-        margin = 1.0 if parallel else self.cfg.mirror_margin
-        return -cand.direction, margin, core.g.slot_width if into_slot else None
+        into_slot = self.parallel and cand.direction < 0 and same_pose(goal, self.g.target)
+        margin = 1.0 if self.parallel else self.cfg.mirror_margin
+        return -cand.direction, margin, self.g.slot_width if into_slot else None
 
     def _band(self, cand: Candidate, goal: np.ndarray, ref_real: np.ndarray | None) -> SwitchBand | None:
         """The band's rows about the reference's switch heading (None: no switch)."""
@@ -172,7 +197,7 @@ class SCP:
         usable = not hits and outside <= cfg.band_tolerance
         if usable:
             clear_plans.append(self._make_plan(cand, u, real, goal, theta_t, line))
-        merit = self.checks.merit(real, goal, theta_t, pen) + cfg.w_slack * outside
+        merit = self.checks.merit(real, goal, theta_t, pen) + band_penalty(cfg, outside)
         return Reference(real, u, pen, merit), hits, usable
 
     def _safe_stop(self, xi0, cand, ref: Reference, goal, theta_t, start, line) -> Plan | None:
@@ -180,24 +205,24 @@ class SCP:
         hits = self.checks.collisions(ref.real, 0.0, start, ref.pen)
         return self.checks.safe_prefix(xi0, cand, ref.u, hits, goal, theta_t, start, line) if hits else None
 
-    def _solve(self, qp, disj, active, preferred, st: dict, miqp: BranchAndBound) -> np.ndarray | None:
-        """The QP, or the MIQP (by ``miqp``) where there are disjunctions; effort counted into
-        ``st`` and taken from the call's budget (None once that is spent)."""
-        budget = self.core.budget
+    def _solve(self, qp, disj, active, preferred, work: _Work) -> np.ndarray | None:
+        """The QP, or the MIQP (by ``work``'s branch and bound) where there are disjunctions;
+        effort counted into ``work`` and taken from the call's budget (None once that is spent)."""
+        budget = self.budget
         if budget.spent:
             return None
         if disj:
-            res = miqp.solve(qp, disj, active, preferred, max_solves=budget.left)
-            st["qp_solves"] += res.qp_solves
-            st["nodes"] += res.nodes
+            res = work.miqp.solve(qp, disj, active, preferred, max_solves=budget.left)
+            work.qp_solves += res.qp_solves
+            work.nodes += res.nodes
             budget.spend(res.qp_solves)
-            st["safety_net"] = st.get("safety_net", False) or res.status == "time_limit"
+            work.safety_net = work.safety_net or res.status == "time_limit"
             if res.status == "node_limit":
-                st["cut_short"] = True  # out of nodes: its optimum not proved, perhaps not found
+                work.cut_short = True  # out of nodes: its optimum not proved, perhaps not found
             return res.x
-        st["qp_solves"] += 1
+        work.qp_solves += 1
         budget.spend(1)
-        return self.core.qp_backend.solve(qp).x
+        return self.qp_solver.solve(qp).x
 
     def _confirmed(self, xi0: np.ndarray, clear_plans: list[Plan], start: Start) -> Plan | None:
         """The cheapest of the three cheapest clear plans that the truth model confirms."""
@@ -215,3 +240,15 @@ class SCP:
         return Plan(
             real_commands(u_planned, cand), real, cand, S, line, planned, cost, (pos_err, th_err), True, goal=goal
         )
+
+
+class _Work:
+    """One candidate solve's running tallies."""
+
+    def __init__(self, miqp: BranchAndBound):
+        self.miqp = miqp
+        self.iterations = self.qp_solves = self.nodes = 0
+        self.cut_short = self.safety_net = False
+
+    def tally(self) -> Tally:
+        return Tally(self.iterations, self.qp_solves, self.nodes)

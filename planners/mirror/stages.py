@@ -1,4 +1,5 @@
-"""Where a planning call's wall time goes, stage by stage, for ``mirrorpark bench``.
+"""A planning call's bookkeeping: where its wall time goes, stage by stage (for
+``mirrorpark bench``), and the QP solves its work budget has left.
 
 A call's time is split into: the QP and branch-and-bound solves (``solve``), building the
 QPs (linearisation and rows, ``build``), rollouts and footprint checks (``checks``),
@@ -8,6 +9,7 @@ call is "other". Timing costs about a microsecond a section, a few hundred a cal
 
 from __future__ import annotations
 
+import math
 import time
 
 STAGES = ("solve", "build", "checks", "cost_to_go", "seeds")
@@ -55,3 +57,21 @@ class _Section:
         self.clock.seconds[self.stage] += dt - self.inner
         if stack:
             stack[-1].inner += dt
+
+
+class CallBudget:
+    """QP solves left to the current call (``CoreConfig.call_qp_budget``; None: no limit)."""
+
+    def __init__(self, limit: int | None):
+        self.limit = limit
+        self.left: float = math.inf
+
+    def reset(self) -> None:
+        self.left = math.inf if self.limit is None else self.limit
+
+    def spend(self, solves: int) -> None:
+        self.left -= solves
+
+    @property
+    def spent(self) -> bool:
+        return self.left <= 0

@@ -28,14 +28,14 @@ from ...common.path import Path
 from ..checks import Start
 from ..config import AimedConfig
 from ..core import PlannerCore
-from ..cost import plan_price
+from ..cost import finish_price, penetration_price, plan_price
 from ..cost_to_go import CostToGo, cost_to_go
 from ..guide import Guide
-from ..plans import Candidate, Plan
-from ..scp import no_effort
+from ..mirror_line import MirrorLine
+from ..plans import Candidate, Plan, Tally
 from ..seeds import TrackedSeed
 from ..solvers import BranchAndBound
-from .base import Strategy
+from .base import Outcome, Strategy
 
 
 def last_gear(c: Candidate) -> int:
@@ -49,42 +49,40 @@ class AimedCandidates(Strategy):
     def __init__(self, core: PlannerCore, config: AimedConfig):
         super().__init__(core, config)
         self.V: CostToGo | None = None  # built by prepare()
-        cc = core.cfg
-        self.scout_miqp = BranchAndBound(core.qp_backend, config.scout_node_limit, cc.time_limit_s)
-        self.tracked_seed = TrackedSeed(core.g, cc, core.coarse)
+        self.price = config.lattice.price  # the one price of V, the seeds and the plans
+        cc = self.cc
+        self.miqp, self.rollouts = core.miqp, core.rollouts
+        self.qp_solver = core.qp_solver  # for the branch and bound of a call's retries
+        self.scout_miqp = BranchAndBound(core.qp_solver, config.scout_node_limit, cc.time_limit_s)
+        self.tracked_seed = TrackedSeed(self.g, cc, core.rollouts.truth)
         self.last_gear = 0  # the gear the last plan ended in (0: none yet), for the switch price
 
     def prepare(self) -> None:
         """The slot's cost to go, shared by episodes in the same slot (``cost_to_go.cost_to_go``)."""
         if self.V is None:
-            self.V = cost_to_go(self.core.g, self.cfg.lattice)
+            self.V = cost_to_go(self.g, self.cfg.lattice)
 
     def cost_to_go(self, pose, gear: int | None = None) -> float:
         """V at ``pose`` (arrived in ``gear``; None: at rest), and near the target, where V's
-        cells are too coarse, the pose error in metres of driving, at most ``finish_cap``
-        above V (so that it ranks poses near the target and nowhere else)."""
-        with self.core.clock("cost_to_go"):
-            c = self.V.cfg
-            v = self.V.lookahead(pose, gear)
-            tx, ty, tth = self.core.g.target
-            e = c.finish_position * math.hypot(pose[0] - tx, pose[1] - ty) + c.finish_heading * abs(
-                unwrap_near(tth, pose[2]) - pose[2]
-            )
-            return v + min(max(e - v, 0.0), c.finish_cap)
+        cells are too coarse, the pose error in metres of driving (``cost.finish_price``)."""
+        with self.clock("cost_to_go"):
+            return finish_price(self.V.cfg, self.V.lookahead(pose, gear), pose, self.g.target)
 
-    def plan(self, state: VehicleState, xi0: np.ndarray, start: Start, t0: float) -> Plan | None:
+    def plan(
+        self, state: VehicleState, xi0: np.ndarray, start: Start, candidates: list[Candidate] | None = None
+    ) -> Outcome:
         self.prepare()
-        pl, cfg = self.core, self.cfg
-        line = pl.line_from(state.theta)
+        cfg = self.cfg
+        line = self.lines.from_heading(state.theta)
         prev = self.last_gear if abs(state.v) < 0.05 else (1 if state.v > 0 else -1)
         call = _Call(self, xi0, start, line, prev)
-        with pl.clock("seeds"):
+        with self.clock("seeds"):
             picked, fixed = self._warm_starts(state, xi0, line, call), set()  # fixed: aimed at the target
             target = call.target
             if math.hypot(xi0[0] - target[0], xi0[1] - target[1]) < cfg.finish_radius:
                 theta_t = unwrap_near(target[2], state.theta)
-                merit = lambda real: pl.checks.merit(real, target, theta_t)  # noqa: E731
-                ranked = pl.shape_seeds.ranked(xi0, pl.shape_seeds.candidates(state, line), line, merit)
+                merit = lambda real: self.checks.merit(real, target, theta_t)  # noqa: E731
+                ranked = self.seeds.ranked(xi0, self.seeds.candidates(state, line), line, merit)
                 for cs in ranked[: cfg.finish_candidates]:
                     fixed.add(len(picked))
                     picked.append(cs)
@@ -99,17 +97,17 @@ class AimedCandidates(Strategy):
         for full in (False, True):
             cut_short = []
             for n in todo:
-                if pl.budget.spent:
+                if self.budget.spent:
                     break  # the call's QP budget (``call_qp_budget``): the best plan so far stands
                 cand, seed = picked[n]
                 if not full:
                     j, plan, cut, conv = call.solve(cand, goals[n], seed, self.scout_miqp)
                 elif retry_nodes > 0:
-                    used = call.totals["nodes"]
-                    cc = pl.cfg
-                    miqp = BranchAndBound(pl.qp_backend, min(cc.node_limit, retry_nodes), cc.time_limit_s)
+                    used = call.tally.nodes
+                    cc = self.cc
+                    miqp = BranchAndBound(self.qp_solver, min(cc.node_limit, retry_nodes), cc.time_limit_s)
                     j, plan, cut, conv = call.solve(cand, goals[n], seed, miqp)
-                    retry_nodes -= call.totals["nodes"] - used
+                    retry_nodes -= call.tally.nodes - used
                 else:
                     break
                 if j < best_j:
@@ -126,34 +124,30 @@ class AimedCandidates(Strategy):
             best, status = call.partial, "partial"
         if best is not None:
             self.last_gear = last_gear(best.candidate)
-        detail = {
-            "candidates": call.tried,
-            "guided": False,
-            "stay_cost": self.cost_to_go(xi0[:3], prev or None),  # the policy's progress measure
-            "value": best_j,
-            "safety_net": call.net,
-        }
-        return pl.finish(t0, status, call.totals, best_j if math.isfinite(best_j) else math.nan, detail, best)
+        stay = self.cost_to_go(xi0[:3], prev or None)  # the cost to go where the car is: the progress
+        cost = best_j if math.isfinite(best_j) else math.nan
+        detail = {"candidates": call.tried, "value": best_j}
+        return Outcome(best, status, call.tally, cost, progress=stay, safety_net=call.net, detail=detail)
 
     def _seed_merit(self, real: np.ndarray) -> float:
-        """J of a seed rollout, plus a steep price on its footprint's penetration."""
+        """J of a seed rollout, plus the price of its footprint's penetration."""
         gears = np.sign(real[np.abs(real[:, 3]) > 0.05, 3])
         switches = int(np.count_nonzero(gears[1:] != gears[:-1]))
-        pen = np.clip(self.core.checks.penetration(real).max(axis=1), 0, None).sum()
+        pen = self.checks.penetration(real).max(axis=1)
         v = min(self.cost_to_go(real[-1, :3]), 1e3)
-        return plan_price(real, switches, v, self.V.cfg.reverse_cost, self.V.cfg.switch_cost) + 100.0 * float(pen)
+        return plan_price(self.price, real, switches, v) + penetration_price(self.price, pen)
 
     def _warm_starts(self, state: VehicleState, xi0: np.ndarray, line, call: _Call):
         """(candidate, seed) pairs: V's cheapest way on in each first gear allowed, through
         no switch and through one, tracked; the classic shapes where V is blind; the way V
         prices at the car, tracked."""
-        pl, reach = self.core, call.reach
+        reach, N = call.reach, self.cc.horizon
         picked: list[tuple[Candidate, np.ndarray]] = []
         dirs = [1 if state.v > 0 else -1] if abs(state.v) > 0.1 else [1, -1]
         for d in dirs:
             for changes in (0, 1):
-                with pl.clock("cost_to_go"):
-                    poses = self.V.policy_path(xi0[:3], d, changes, 1.5 * reach * pl.N)
+                with self.clock("cost_to_go"):
+                    poses = self.V.policy_path(xi0[:3], d, changes, 1.5 * reach * N)
                 if poses is not None:
                     c, seed, _ = self.tracked_seed.seed(xi0, Guide(Path.from_poses(poses), 0.0))
                     if all(c != q for q, _ in picked):
@@ -166,8 +160,8 @@ class AimedCandidates(Strategy):
         # 83.5 % parked against 83.2 %, 1.59 switches against 1.75 where it, the default
         # before it and hybrid A* all park (CHANGELOG.md, 2026-12-04).
         for changes in (0, 1):
-            with pl.clock("cost_to_go"):
-                poses = self.V.read_path(xi0[:3], changes, 1.5 * reach * pl.N)
+            with self.clock("cost_to_go"):
+                poses = self.V.read_path(xi0[:3], changes, 1.5 * reach * N)
             if poses is None:
                 continue
             c, seed, _ = self.tracked_seed.seed(xi0, Guide(Path.from_poses(poses), 0.0))
@@ -183,8 +177,7 @@ class AimedCandidates(Strategy):
     def _shape_starts(self, state: VehicleState, xi0: np.ndarray, line, call: _Call):
         """(candidate, seed) pairs from the classic shapes, best by the merit: every candidate
         without a switch (``_sized``) and the best ``candidates`` with one."""
-        pl = self.core
-        ranked = pl.shape_seeds.ranked(xi0, pl.shape_seeds.candidates(state, line), line, self._seed_merit)
+        ranked = self.seeds.ranked(xi0, self.seeds.candidates(state, line), line, self._seed_merit)
         picked = self._sized(xi0, line, call, [cs for cs in ranked if cs[0].switch is None])
         return picked + [cs for cs in ranked if cs[0].switch is not None][: self.cfg.candidates]
 
@@ -206,7 +199,7 @@ class ColdStart(AimedCandidates):
         instead of the target, where that seed's merit (J, its penetration priced) is lower:
         a shape sized to the target from a car across the road runs into a wall."""
         for n, (c, seed) in enumerate(picked):
-            aimed = self.core.shape_seeds.seeds(xi0, [(c, None)], line, target=tuple(call.aim(seed, c)))[0]
+            aimed = self.seeds.seeds(xi0, [(c, None)], line, target=tuple(call.aim(seed, c)))[0]
             if self._seed_merit(aimed) < self._seed_merit(seed):
                 picked[n] = (c, aimed)
         return picked
@@ -215,22 +208,22 @@ class ColdStart(AimedCandidates):
 class _Call:
     """One planning call's scoring, aiming and solving of candidates, and its tallies."""
 
-    def __init__(self, vp: AimedCandidates, xi0: np.ndarray, start: Start, line, prev: int):
-        self.vp, self.pl, self.cfg, self.cc = vp, vp.core, vp.cfg, vp.core.cfg
+    def __init__(self, vp: AimedCandidates, xi0: np.ndarray, start: Start, line: MirrorLine, prev: int):
+        self.vp, self.cfg, self.cc = vp, vp.cfg, vp.cc
+        self.N = self.cc.horizon
         self.xi0, self.start, self.line, self.prev = xi0, start, line, prev
-        self.target = np.array(self.pl.g.target, float)
+        self.target = np.array(vp.g.target, float)
         self.reach = self.cfg.reach_speed * self.cc.dt  # [m] per step of horizon left
-        self.totals = no_effort()
+        self.tally = Tally()
         self.tried: list = []  # (candidate, J or None, status, goal) per solve
         self.partial: Plan | None = None
         self.net = False
 
     def score(self, real: np.ndarray, c: Candidate) -> float:
         """J: driven cost, the switch price (one more if the first gear is not the last plan's), V at the end."""
-        vc = self.vp.V.cfg
         switches = (c.switch is not None) + (self.prev != 0 and c.direction != self.prev)
         v = self.vp.cost_to_go(real[-1, :3], last_gear(c))
-        return plan_price(real, switches, v, vc.reverse_cost, vc.switch_cost)
+        return plan_price(self.vp.price, real, switches, v)
 
     def aim(self, real: np.ndarray, c: Candidate) -> np.ndarray:
         """The goal down V from the candidate's switch pose (or start) as far as the horizon left
@@ -238,9 +231,9 @@ class _Call:
         in the candidate's last gear (without it such a goal is the pose itself, and the
         candidate stands: measured, 21 of 192 goals of candidates without a switch on every
         50th standard case)."""
-        N, k = self.pl.N, 0 if c.switch is None else c.switch
+        N, k = self.N, 0 if c.switch is None else c.switch
         pose = real[k * self.cc.model_substeps, :3] if len(real) > N + 1 else real[k, :3]
-        with self.pl.clock("cost_to_go"):
+        with self.vp.clock("cost_to_go"):
             goal = self.vp.V.descend(pose, last_gear(c), self.reach * (N - k), move_on=True)
         return self.target.copy() if goal is None else goal
 
@@ -248,40 +241,40 @@ class _Call:
         """(J, plan, cut short, converged) of the candidate solved toward ``goal`` (inf, None:
         no plan; cut short: its branch and bound ran out of nodes; converged: its SCP stopped
         before its round cap); records the try."""
-        pl, cfg = self.pl, self.cfg
-        natural = cand.direction == pl.shape_seeds.first_direction
-        plan, st = pl.scp.solve(
+        vp, cfg = self.vp, self.cfg
+        natural = cand.direction == vp.seeds.first_direction
+        res = vp.scp.solve(
             self.xi0, cand, goal, self.start, self.line, seed, iterations=cfg.iterations, band=natural, miqp=miqp
         )
-        for k in self.totals:
-            self.totals[k] += st[k]
-        self.net = self.net or st.get("safety_net", False)
-        part = st.get("partial")
+        self.tally += res.tally
+        self.net = self.net or res.safety_net
+        part = res.partial
         if part is not None and (self.partial is None or part.cost < self.partial.cost):
             self.partial = part
+        plan = res.plan
         if plan is None:
-            self.tried.append((cand, None, st["status"], tuple(np.round(goal, 3))))
-            return math.inf, None, st.get("cut_short", False), False
+            self.tried.append((cand, None, res.status, tuple(np.round(goal, 3))))
+            return math.inf, None, res.cut_short, False
         moved = float(np.abs(plan.states[:, 3]).sum()) * self.cc.dt
         j = self.score(plan.states, cand) if moved > 0.05 else math.inf  # standing is no plan
-        self.tried.append((cand, round(j, 3), st["status"], tuple(np.round(goal, 3))))
-        return j, plan, st.get("cut_short", False), st.get("converged", False)
+        self.tried.append((cand, round(j, 3), res.status, tuple(np.round(goal, 3))))
+        return j, plan, res.cut_short, res.converged
 
     def refine(self, best: Plan, best_j: float, goal: np.ndarray, converged: bool) -> tuple[Plan, float]:
         """The leader re-aimed down V from its optimised plan and solved again from it, while
         its goal moves or its SCP has not converged (measured: three rounds left an entry
         into a 1.92 m angle slot 6 cm to one side, and the car then shuffled 29 times)."""
-        pl, cand, plan = self.pl, best.candidate, best
+        vp, cand, plan = self.vp, best.candidate, best
         for _ in range(self.cfg.updates - 1):
-            if pl.budget.spent:
+            if vp.budget.spent:
                 break
             new = self.aim(plan.states, cand)
             if np.hypot(*(new[:2] - goal[:2])) < 0.05 and abs(wrap_angle(new[2] - goal[2])) < 0.02 and converged:
                 break
             goal = new
-            with pl.clock("seeds"):
-                seed = np.concatenate([self.xi0[None], pl.coarse.rollout(self.xi0, plan.commands)[:, :6]])
-            j, plan, _, converged = self.solve(cand, goal, seed, pl.miqp)
+            with vp.clock("seeds"):
+                seed = vp.rollouts.commands(self.xi0, plan.commands)
+            j, plan, _, converged = self.solve(cand, goal, seed, vp.miqp)
             if plan is None:
                 break
             if j < best_j:
