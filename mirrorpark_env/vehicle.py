@@ -16,6 +16,7 @@ from functools import cache
 import numpy as np
 
 from .config import VehicleConfig, default_vehicle
+from .truth_kernel import truth_rollout, truth_step
 
 # Body-frame corners (rear-axle origin, x forward, y left) in this fixed order.
 CORNER_NAMES = ("front_left", "front_right", "rear_right", "rear_left")
@@ -133,8 +134,8 @@ class VehicleState:
 class TruthModel:
     """Propagates the truth model over one control step with constant commands.
 
-    Holds the per-step constants so that ``step`` does no repeated set-up work. The
-    sub-steps run on Python floats: for ten of them that is faster than numpy.
+    Holds the per-step constants so that ``step`` does no repeated set-up work; the step
+    itself is ``truth_kernel.truth_step``, compiled, the one place its arithmetic is written.
     """
 
     def __init__(self, params: VehicleParams, dt: float = 0.1, substep: float = 0.01):
@@ -151,15 +152,16 @@ class TruthModel:
         self._ed_mid = [math.exp(-(k + 0.5) * h / params.tau_delta) for k in ks]
         self._ed_end = [math.exp(-(k + 1) * h / params.tau_delta) for k in ks]
         self._dv_lag = params.tau_a * (1.0 - math.exp(-h / params.tau_a))
+        self._lags, self._consts = self.lag_factors(), self.step_constants()  # for the compiled step
 
     def lag_factors(self) -> np.ndarray:
         """(n, 4) per sub-step: the acceleration lag's decay at its start and end, the steering
-        lag's at its middle and end (for compiled loops that repeat ``step_rows``)."""
+        lag's at its middle and end (``truth_kernel.truth_step``'s ``lags``)."""
         return np.array([self._ea_start, self._ea_end, self._ed_mid, self._ed_end], dtype=float).T.copy()
 
     def step_constants(self) -> tuple[float, ...]:
         """(h, 1 / wheelbase, v_min, v_max, dv_lag, a_min, a_max, max_steer, tau_a): the scalars
-        ``step_rows`` and the brake's hold law use, for compiled loops that repeat them."""
+        ``truth_kernel.truth_step`` and the brake's hold law use."""
         p = self.params
         return (
             float(self.h),
@@ -173,114 +175,20 @@ class TruthModel:
             float(p.tau_a),
         )
 
-    def clip_commands(self, a_cmd: float, delta_cmd: float) -> tuple[float, float]:
-        p = self.params
-        return (
-            min(max(a_cmd, p.a_min), p.a_max),
-            min(max(delta_cmd, -p.max_steer), p.max_steer),
-        )
-
     def step(self, state, a_cmd: float, delta_cmd: float) -> np.ndarray:
         """States at the end of each sub-step, (n, 7); commands are clipped to bounds.
 
         Columns: x, y, theta, v, a, delta, and the distance travelled in the sub-step.
         """
-        return np.array(self.step_rows(state, a_cmd, delta_cmd))
-
-    def step_rows(self, state, a_cmd: float, delta_cmd: float) -> list[tuple[float, ...]]:
-        """``step`` as a list of row tuples (for closed loops that collect many steps)."""
-        p = self.params
-        a_cmd, delta_cmd = self.clip_commands(a_cmd, delta_cmd)
-        x, y, th, v, a0, d0 = map(float, state[:6])
-        h, inv_l, v_min, v_max, dv_lag = self.h, 1.0 / p.wheelbase, p.v_min, p.v_max, self._dv_lag
-        da, dd = a0 - a_cmd, d0 - delta_cmd
-        rows = []
-        for ea0, ea1, edm, ede in zip(self._ea_start, self._ea_end, self._ed_mid, self._ed_end):
-            # Exact lags: a(t) and delta(t) relax exponentially toward the commands.
-            v1 = v + a_cmd * h + da * ea0 * dv_lag
-            v1 = v_min if v1 < v_min else (v_max if v1 > v_max else v1)
-            ds = 0.5 * (v + v1) * h
-            dth = ds * math.tan(delta_cmd + dd * edm) * inv_l
-            half = 0.5 * dth
-            chord = ds * math.sin(half) / half if abs(half) > 1e-12 else ds
-            x += chord * math.cos(th + half)
-            y += chord * math.sin(th + half)
-            th += dth
-            v = v1
-            rows.append((x, y, th, v, a_cmd + da * ea1, delta_cmd + dd * ede, abs(chord)))
-        return rows
-
-    def step_batch(self, states: np.ndarray, a_cmd: np.ndarray, delta_cmd: np.ndarray) -> np.ndarray:
-        """``step`` for K states at once, each with its own commands: (K, n, 6) sub-step
-        states (x, y, theta, v, a, delta); the same arithmetic, vectorised over K (many
-        closed-loop rollouts advanced together)."""
-        p = self.params
-        st = np.asarray(states, float).reshape(-1, 6)
-        a_cmd = np.clip(np.asarray(a_cmd, float), p.a_min, p.a_max)
-        delta_cmd = np.clip(np.asarray(delta_cmd, float), -p.max_steer, p.max_steer)
-        x, y, th, v = st[:, 0].copy(), st[:, 1].copy(), st[:, 2].copy(), st[:, 3].copy()
-        da, dd = st[:, 4] - a_cmd, st[:, 5] - delta_cmd
-        h, inv_l = self.h, 1.0 / p.wheelbase
-        out = np.empty((len(st), self.n, 6))
-        for k, (ea0, ea1, edm, ede) in enumerate(zip(self._ea_start, self._ea_end, self._ed_mid, self._ed_end)):
-            v1 = np.clip(v + a_cmd * h + da * ea0 * self._dv_lag, p.v_min, p.v_max)
-            ds = 0.5 * (v + v1) * h
-            dth = ds * np.tan(delta_cmd + dd * edm) * inv_l
-            half = 0.5 * dth
-            small = np.abs(half) <= 1e-12
-            chord = np.where(small, ds, ds * np.sin(half) / np.where(small, 1.0, half))
-            x = x + chord * np.cos(th + half)
-            y = y + chord * np.sin(th + half)
-            th = th + dth
-            v = v1
-            out[:, k] = np.stack((x, y, th, v, a_cmd + da * ea1, delta_cmd + dd * ede), axis=1)
+        out = np.empty((self.n, 7))
+        truth_step(*(float(v) for v in state[:6]), float(a_cmd), float(delta_cmd), self._lags, self._consts, out, 0)
         return out
 
     def rollout(self, state, commands) -> np.ndarray:
         """States at the end of every sub-step under a sequence of (a_cmd, delta_cmd), one
-        per control step: (steps * n, 7), the rows of chaining ``step`` (to rounding).
-
-        Open-loop sequences (a plan's commands) are rolled out in one vectorised pass;
-        where the speed would saturate, it falls back to chaining ``step``.
-        """
-        p = self.params
-        u = np.asarray(commands, dtype=float).reshape(-1, 2)
-        m = len(u)
-        if m == 0:
-            return np.empty((0, 7))
-        a_cmd = np.clip(u[:, 0], p.a_min, p.a_max)
-        d_cmd = np.clip(u[:, 1], -p.max_steer, p.max_steer)
-        x0, y0, th0, v0, a0, d0 = (float(s) for s in state[:6])
-        # Lag states at the start of each control step: a first-order recurrence.
-        ea, ed = self._ea_end[-1], self._ed_end[-1]
-        da, dd = np.empty(m), np.empty(m)
-        a, d = a0, d0
-        for i, (ac, dc) in enumerate(zip(a_cmd.tolist(), d_cmd.tolist())):
-            da[i], dd[i] = a - ac, d - dc
-            a, d = ac + da[i] * ea, dc + dd[i] * ed
-        h = self.h
-        ea0, ea1, edm, ede = (np.asarray(t) for t in (self._ea_start, self._ea_end, self._ed_mid, self._ed_end))
-        dv = (a_cmd[:, None] * h + da[:, None] * ea0 * self._dv_lag).ravel()
-        v = np.cumsum(np.concatenate(([v0], dv)))
-        if v.min() < p.v_min or v.max() > p.v_max:  # saturation is sequential: step by step
-            rows, s = [], np.asarray(state, float)
-            for ac, dc in u:
-                sub = self.step(s, ac, dc)
-                rows.append(sub)
-                s = sub[-1, :6]
-            return np.concatenate(rows)
-        ds = 0.5 * (v[:-1] + v[1:]) * h
-        dth = ds * np.tan((d_cmd[:, None] + dd[:, None] * edm).ravel()) / p.wheelbase
-        th = np.cumsum(np.concatenate(([th0], dth)))
-        half = 0.5 * dth
-        safe = np.where(np.abs(half) > 1e-12, half, 1.0)
-        chord = np.where(np.abs(half) > 1e-12, ds * np.sin(half) / safe, ds)
-        heading = th[:-1] + half
-        x = np.cumsum(np.concatenate(([x0], chord * np.cos(heading))))
-        y = np.cumsum(np.concatenate(([y0], chord * np.sin(heading))))
-        a_end = (a_cmd[:, None] + da[:, None] * ea1).ravel()
-        d_end = (d_cmd[:, None] + dd[:, None] * ede).ravel()
-        return np.stack((x[1:], y[1:], th[1:], v[1:], a_end, d_end, np.abs(chord)), axis=1)
+        per control step: (steps * n, 7), the rows of chaining ``step``."""
+        u = np.ascontiguousarray(np.asarray(commands, dtype=float).reshape(-1, 2))
+        return truth_rollout(np.asarray(state, dtype=float)[:6], u, self._lags, self._consts)
 
 
 def to_action(params: VehicleParams, a_cmd: float, delta_cmd: float) -> np.ndarray:

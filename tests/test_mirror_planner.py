@@ -659,8 +659,8 @@ def _chained_brake(truth, state, steps: int) -> np.ndarray:
 
     s, rows = tuple(float(v) for v in state[:6]), []
     for _ in range(steps):
-        step = truth.step_rows(s, hold_accel(truth.params, s[3], s[4]), s[5])
-        rows += step
+        step = truth.step(s, hold_accel(truth.params, s[3], s[4]), s[5])
+        rows.extend(step)
         s = step[-1][:6]
     return np.array(rows)
 
@@ -787,7 +787,7 @@ def test_plans_that_leave_the_car_where_it_stood_are_not_asked_for_a_third_time(
 
 def test_the_compiled_seed_rollouts_repeat_the_numpy_loop_bit_for_bit():
     """The multi-start seeds' closed loop (``seed_kernel``) gives the sub-step states of the
-    numpy loop it replaced (the controller, then ``TruthModel.step_batch``), to the last bit:
+    numpy loop it replaced (the controller, then ``TruthModel.step`` per seed), to the last bit:
     moving and standing starts, references beyond the actuator bounds, both gears."""
     from mirrorpark_env.vehicle import TruthModel
     from planners.mirror.seed_kernel import SeedRollouts
@@ -810,7 +810,7 @@ def test_the_compiled_seed_rollouts_repeat_the_numpy_loop_bit_for_bit():
         for i in range(N):
             a_cmd = np.clip(3.0 * (v_ref[:, i] - state[:, 3]) - 0.5 * state[:, 4], p.a_min, p.a_max)
             d_cmd = np.clip(2.5 * (th_ref[:, i] - state[:, 2]) * sgn[:, i], -p.max_steer, p.max_steer)
-            sub = coarse.step_batch(state, a_cmd, d_cmd)
+            sub = np.array([coarse.step(state[k], a_cmd[k], d_cmd[k])[:, :6] for k in range(K)])
             want[:, 1 + i * coarse.n : 1 + (i + 1) * coarse.n] = sub
             state = sub[:, -1]
         assert np.array_equal(roll(xi0, v_ref, th_ref), want)

@@ -59,15 +59,15 @@ def test_a_car_stopped_short_of_the_kerb_backs_off_in_the_learners_second_gear()
 
 
 def _chained(model, state, a_cmd, d_cmd, brake_steps):
-    """The filter's look-ahead as it was written in Python: ``step_rows``, then the brake."""
+    """The filter's look-ahead as it was written in Python: ``TruthModel.step``, then the brake."""
     from planners.common.tracker import hold_accel
 
-    rows = model.step_rows(state, a_cmd, d_cmd)
+    rows = model.step(state, a_cmd, d_cmd)
     poses, x = [r[:3] for r in rows], rows[-1][:6]
     for _ in range(brake_steps):
         if abs(x[3]) < 1e-3 and abs(x[4]) < 1e-2:
             break
-        rows = model.step_rows(x, hold_accel(model.params, x[3], x[4]), x[5])
+        rows = model.step(x, hold_accel(model.params, x[3], x[4]), x[5])
         poses += [r[:3] for r in rows]
         x = rows[-1][:6]
     return np.array(poses)

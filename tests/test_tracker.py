@@ -14,13 +14,13 @@ from planners.mirror.config import CoreConfig
 
 
 def _python_loop(tracker: PathTracker, model: TruthModel, xi0, steps: int):
-    """``PathTracker.command_at`` then ``TruthModel.step_rows``, ``steps`` times: the loop
+    """``PathTracker.command_at`` then ``TruthModel.step``, ``steps`` times: the loop
     the mirror planner's guided seed ran before it was compiled."""
     state = tuple(float(v) for v in xi0[:6])
     out, segs, reached = [(*state, 0.0)], [0], [0]
     for _ in range(steps):
-        sub = model.step_rows(state, *tracker.command_at(*state))
-        out += sub
+        sub = model.step(state, *tracker.command_at(*state))
+        out.extend(sub)
         state = sub[-1][:6]
         segs.append(-1 if tracker.done else tracker.seg)
         reached.append(tracker.j)

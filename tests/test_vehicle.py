@@ -72,9 +72,9 @@ def test_commands_and_speed_saturate():
 
 @pytest.mark.parametrize("substep", [0.01, 0.05])
 @pytest.mark.parametrize("saturating", [False, True])
-def test_vectorised_rollout_equals_chained_steps(substep, saturating):
-    """``rollout`` (open-loop plans) is the same model as ``step``: every sub-step's row
-    agrees, including gear changes, straight stretches and (by fallback) speed saturation."""
+def test_rollout_equals_chained_steps(substep, saturating):
+    """``rollout`` (open-loop plans) is ``step`` chained: every sub-step's row, bit for bit,
+    including gear changes, straight stretches and speed saturation."""
     m = TruthModel(P, 0.1, substep)
     rng = np.random.default_rng(3)
     cmds = np.stack([rng.uniform(-3, 3, 60), rng.uniform(-0.7, 0.7, 60)], axis=1)  # beyond bounds: clipped
@@ -90,16 +90,45 @@ def test_vectorised_rollout_equals_chained_steps(substep, saturating):
     chained = np.concatenate(chained)
     fast = m.rollout(state, cmds)
     assert fast.shape == chained.shape == (60 * round(0.1 / substep), 7)
-    assert np.abs(fast - chained).max() < 1e-9
+    assert np.array_equal(fast, chained)
     assert (chained[:, 3].max() >= P.v_max - 1e-12) == saturating
 
 
-def test_batched_steps_equal_single_steps():
-    """``step_batch`` (many closed-loop rollouts advanced together) is ``step`` row for row:
-    standing cars, straight wheels, saturated speeds and commands beyond their bounds."""
-    m = TruthModel(P, 0.1, 0.05)
+def _reference_step(m: TruthModel, state, a_cmd: float, delta_cmd: float) -> np.ndarray:
+    """The truth model's step written out in Python (the module docstring's model): exact
+    lags, arcs of the sub-step's mean speed at its mid-step steering, commands clipped."""
+    p = m.params
+    a_cmd, delta_cmd = min(max(a_cmd, p.a_min), p.a_max), min(max(delta_cmd, -p.max_steer), p.max_steer)
+    x, y, th, v, a0, d0 = map(float, state[:6])
+    h, inv_l = m.h, 1.0 / p.wheelbase
+    dv_lag = p.tau_a * (1.0 - math.exp(-h / p.tau_a))
+    da, dd = a0 - a_cmd, d0 - delta_cmd
+    rows = []
+    for k in range(m.n):
+        v1 = v + a_cmd * h + da * math.exp(-k * h / p.tau_a) * dv_lag
+        v1 = p.v_min if v1 < p.v_min else (p.v_max if v1 > p.v_max else v1)
+        ds = 0.5 * (v + v1) * h
+        dth = ds * math.tan(delta_cmd + dd * math.exp(-(k + 0.5) * h / p.tau_delta)) * inv_l
+        half = 0.5 * dth
+        chord = ds * math.sin(half) / half if abs(half) > 1e-12 else ds
+        x += chord * math.cos(th + half)
+        y += chord * math.sin(th + half)
+        th += dth
+        v = v1
+        a = a_cmd + da * math.exp(-(k + 1) * h / p.tau_a)
+        d = delta_cmd + dd * math.exp(-(k + 1) * h / p.tau_delta)
+        rows.append((x, y, th, v, a, d, abs(chord)))
+    return np.array(rows)
+
+
+@pytest.mark.parametrize("substep", [0.01, 0.05])
+def test_the_compiled_step_is_the_python_reference_bit_for_bit(substep):
+    """``step`` (the compiled ``truth_kernel.truth_step``) against the model written out in
+    Python, on random states and commands: standing cars, straight wheels, saturated speeds
+    and commands beyond their bounds."""
+    m = TruthModel(P, 0.1, substep)
     rng = np.random.default_rng(0)
-    k = 200
+    k = 300
     states = np.column_stack(
         [
             rng.uniform(-5, 5, k),
@@ -110,14 +139,12 @@ def test_batched_steps_equal_single_steps():
             rng.uniform(-0.6, 0.6, k),
         ]
     )
-    a_cmd, d_cmd = rng.uniform(-4, 4, k), rng.uniform(-0.8, 0.8, k)
+    a_cmd, d_cmd = rng.uniform(-6, 4, k), rng.uniform(-0.8, 0.8, k)
     states[:5, 3], states[:5, 4], a_cmd[:5] = 0.0, 0.0, 0.0  # standing still
     states[5:10, 5], d_cmd[5:10] = 0.0, 0.0  # straight
     states[10:15, 3], a_cmd[10:15] = P.v_max, 4.0  # saturating
-    batch = m.step_batch(states, a_cmd, d_cmd)
-    single = np.array([m.step(states[i], a_cmd[i], d_cmd[i])[:, :6] for i in range(k)])
-    assert batch.shape == (k, 2, 6)
-    assert np.abs(batch - single).max() < 1e-12
+    for i in range(k):
+        assert np.array_equal(m.step(states[i], a_cmd[i], d_cmd[i]), _reference_step(m, states[i], a_cmd[i], d_cmd[i]))
 
 
 @pytest.mark.parametrize("lags", [False, True])

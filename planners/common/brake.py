@@ -2,10 +2,10 @@
 of a command, then the brake until the car stands) and the mirror planner's brake tail
 after a plan (a fixed number of brake steps).
 
-Both ran ``TruthModel.step_rows`` one Python float at a time: in a profile of ``rl-shield``
+Both ran ``TruthModel.step`` one Python float at a time: in a profile of ``rl-shield``
 on the smoke sample, 56 % of a decision's time was the filter. This kernel runs the same
 sub-steps with the same operations in the same order (tests/test_shield.py and
-tests/test_mirror_planner.py compare its poses with chained ``step_rows`` bit for bit), so
+tests/test_mirror_planner.py compare its poses with chained ``TruthModel.step`` bit for bit), so
 no verdict changes.
 """
 
@@ -14,9 +14,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from mirrorpark_env.truth_kernel import truth_step
 from mirrorpark_env.vehicle import TruthModel
-
-from .truth_kernel import truth_step
 
 
 @njit(cache=True, nogil=True)

@@ -57,7 +57,7 @@ class StoppingCheck:
                 a_cmd, d_cmd = hold_accel(p, v, a), d
             else:
                 a_cmd, d_cmd = tr.command_at(x, y, th, v, a, d)
-            rows = self.model.step_rows((x, y, th, v, a, d), a_cmd, d_cmd)
+            rows = self.model.step((x, y, th, v, a, d), a_cmd, d_cmd)
             poses += [r[:3] for r in rows]
             x, y, th, v, a, d = rows[-1][:6]
             if tr.done or (moved and abs(v) < 0.01):

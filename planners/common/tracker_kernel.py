@@ -1,7 +1,7 @@
 """The path tracker's closed loop on a truth model, compiled (numba).
 
 The mirror planner's guided seed drives the tracker on the planning model for a whole
-horizon (N steps of ``PathTracker.command_at`` then ``TruthModel.step_rows``) several times
+horizon (N steps of ``PathTracker.command_at`` then ``TruthModel.step``) several times
 per planning call; in Python that loop was about 4 % of an episode. This kernel runs the
 same operations in the same order (tests/test_tracker.py compares its states, segments and
 samples reached with the Python loop bit for bit), so no seed, and no plan, changes.
@@ -19,10 +19,10 @@ import math
 import numpy as np
 from numba import njit
 
+from mirrorpark_env.truth_kernel import truth_step
 from mirrorpark_env.vehicle import TruthModel
 
 from .tracker import PathTracker
-from .truth_kernel import truth_step
 
 _STEER, _DRIVE, _STOP = 0, 1, 2
 
@@ -150,7 +150,7 @@ def _track(xi0, xs, ys, ths, s_arr, kappa, gears, seg_i0, seg_i1, tc, vc, lags, 
             acc = gain * (gear * v_ref - v)
             a_cmd = max(a_min, min(a_max, acc))
             break
-        x, y, th, v, a, d = truth_step(x, y, th, v, a, d, a_cmd, d_cmd, lags, consts, out, row)  # step_rows
+        x, y, th, v, a, d = truth_step(x, y, th, v, a, d, a_cmd, d_cmd, lags, consts, out, row)  # TruthModel.step
         row += n
         segs[step + 1] = -1 if done else seg
         reached[step + 1] = j

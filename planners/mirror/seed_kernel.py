@@ -1,7 +1,7 @@
 """The multi-start seeds' references and closed-loop rollouts, compiled (numba).
 
 ``ShapeSeeds.seeds`` drives K seeds at once for N control steps: a speed and heading
-controller on each seed's references, then one ``TruthModel.step_batch`` on the planning
+controller on each seed's references, then one ``TruthModel.step`` per seed on the planning
 model. On numpy arrays of a few dozen rows each step was mostly call overhead, and the
 references, element by element in Python, cost about as much. These kernels run the same
 operations in the same order, seed by seed (tests/test_mirror_planner.py compares the
@@ -16,9 +16,8 @@ import math
 import numpy as np
 from numba import njit
 
+from mirrorpark_env.truth_kernel import truth_step
 from mirrorpark_env.vehicle import TruthModel
-
-from ..common.truth_kernel import truth_step
 
 
 @njit(cache=True, nogil=True)
