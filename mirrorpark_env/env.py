@@ -293,7 +293,7 @@ class MirrorParkEnv(gym.Env):
         c, s = math.cos(th), math.sin(th)
         x, y = x / POS_SCALE, y / POS_SCALE
         obs = np.empty(13, dtype=np.float32)
-        obs[:7] = (x, y, c, s, v / p.v_max, a / abs(p.a_min), d / p.max_steer)
+        obs[:7] = (x, y, c, s, v / p.speed_max, a / abs(p.accel_min), d / p.max_steer_rad)
         obs[7:] = self._static_obs
         out = {
             "observation": obs,

@@ -9,6 +9,7 @@ exact whenever speed and steering are constant.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from functools import cache
@@ -24,52 +25,28 @@ CORNER_NAMES = ("front_left", "front_right", "rear_right", "rear_left")
 
 @dataclass(frozen=True)
 class VehicleParams:
-    """Geometry and limits of the car (Table II); SI units, radians."""
+    """Geometry and limits of the car (Table II); SI units, radians. The fields are
+    ``VehicleConfig``'s (``configs/vehicle.yaml``'s names), one name each."""
 
     wheelbase: float
     rear_overhang: float
     front_length: float
     width: float
-    max_steer: float
-    a_min: float
-    a_max: float
-    v_min: float
-    v_max: float
-    tau_a: float
-    tau_delta: float
+    max_steer_rad: float
+    accel_min: float
+    accel_max: float
+    speed_min: float
+    speed_max: float
+    tau_accel_s: float
+    tau_steer_s: float
 
     @classmethod
     def from_config(cls, cfg: VehicleConfig) -> VehicleParams:
-        return cls(
-            wheelbase=cfg.wheelbase,
-            rear_overhang=cfg.rear_overhang,
-            front_length=cfg.front_length,
-            width=cfg.width,
-            max_steer=cfg.max_steer_rad,
-            a_min=cfg.accel_min,
-            a_max=cfg.accel_max,
-            v_min=cfg.speed_min,
-            v_max=cfg.speed_max,
-            tau_a=cfg.tau_accel_s,
-            tau_delta=cfg.tau_steer_s,
-        )
+        return cls(**cfg.model_dump())
 
     def as_config(self) -> dict[str, float]:
-        """The fields of ``VehicleConfig`` (``configs/vehicle.yaml``'s names): the inverse of
-        ``from_config``."""
-        return {
-            "wheelbase": self.wheelbase,
-            "rear_overhang": self.rear_overhang,
-            "front_length": self.front_length,
-            "width": self.width,
-            "max_steer_rad": self.max_steer,
-            "accel_min": self.a_min,
-            "accel_max": self.a_max,
-            "speed_min": self.v_min,
-            "speed_max": self.v_max,
-            "tau_accel_s": self.tau_a,
-            "tau_steer_s": self.tau_delta,
-        }
+        """The fields of ``VehicleConfig``: the inverse of ``from_config``."""
+        return dataclasses.asdict(self)
 
     @classmethod
     def table_ii(cls) -> VehicleParams:
@@ -83,7 +60,7 @@ class VehicleParams:
     @property
     def r_min(self) -> float:
         """Minimum turning radius of the rear-axle centre."""
-        return self.wheelbase / math.tan(self.max_steer)
+        return self.wheelbase / math.tan(self.max_steer_rad)
 
     @property
     def center_offset(self) -> float:
@@ -147,11 +124,11 @@ class TruthModel:
         self.n = n
         self.h = h = dt / n
         ks = range(n)
-        self._ea_start = [math.exp(-k * h / params.tau_a) for k in ks]
-        self._ea_end = [math.exp(-(k + 1) * h / params.tau_a) for k in ks]
-        self._ed_mid = [math.exp(-(k + 0.5) * h / params.tau_delta) for k in ks]
-        self._ed_end = [math.exp(-(k + 1) * h / params.tau_delta) for k in ks]
-        self._dv_lag = params.tau_a * (1.0 - math.exp(-h / params.tau_a))
+        self._ea_start = [math.exp(-k * h / params.tau_accel_s) for k in ks]
+        self._ea_end = [math.exp(-(k + 1) * h / params.tau_accel_s) for k in ks]
+        self._ed_mid = [math.exp(-(k + 0.5) * h / params.tau_steer_s) for k in ks]
+        self._ed_end = [math.exp(-(k + 1) * h / params.tau_steer_s) for k in ks]
+        self._dv_lag = params.tau_accel_s * (1.0 - math.exp(-h / params.tau_accel_s))
         self._lags, self._consts = self.lag_factors(), self.step_constants()  # for the compiled step
 
     def lag_factors(self) -> np.ndarray:
@@ -166,13 +143,13 @@ class TruthModel:
         return (
             float(self.h),
             1.0 / p.wheelbase,
-            float(p.v_min),
-            float(p.v_max),
+            float(p.speed_min),
+            float(p.speed_max),
             float(self._dv_lag),
-            float(p.a_min),
-            float(p.a_max),
-            float(p.max_steer),
-            float(p.tau_a),
+            float(p.accel_min),
+            float(p.accel_max),
+            float(p.max_steer_rad),
+            float(p.tau_accel_s),
         )
 
     def step(self, state, a_cmd: float, delta_cmd: float) -> np.ndarray:
@@ -197,8 +174,8 @@ def to_action(params: VehicleParams, a_cmd: float, delta_cmd: float) -> np.ndarr
     Acceleration maps piecewise-linearly so that 0 stays 0: [a_min, 0] -> [-1, 0] and
     [0, a_max] -> [0, 1]; steering maps linearly [-max_steer, max_steer] -> [-1, 1].
     """
-    ua = a_cmd / params.a_max if a_cmd >= 0 else -a_cmd / params.a_min
-    return np.clip(np.array([ua, delta_cmd / params.max_steer], dtype=np.float32), -1.0, 1.0)
+    ua = a_cmd / params.accel_max if a_cmd >= 0 else -a_cmd / params.accel_min
+    return np.clip(np.array([ua, delta_cmd / params.max_steer_rad], dtype=np.float32), -1.0, 1.0)
 
 
 def from_action(params: VehicleParams, action) -> tuple[float, float]:
@@ -220,8 +197,8 @@ def from_action(params: VehicleParams, action) -> tuple[float, float]:
         raise ValueError(f"action: must be finite numbers in [-1, 1], got [{ua}, {ud}]")
     ua = min(max(ua, -1.0), 1.0)
     ud = min(max(ud, -1.0), 1.0)
-    a_cmd = ua * params.a_max if ua >= 0 else -ua * params.a_min
-    return a_cmd, ud * params.max_steer
+    a_cmd = ua * params.accel_max if ua >= 0 else -ua * params.accel_min
+    return a_cmd, ud * params.max_steer_rad
 
 
 @cache

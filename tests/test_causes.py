@@ -34,8 +34,8 @@ class _Script(Policy):
         s = info["vehicle_state"]
         if self.done(s, self.target):
             self.gave_up = True
-        a, d = self.law(s, self.target) if not self.gave_up else (-(s.v / P.tau_a + s.a), 0.0)
-        return to_action(P, max(P.a_min, min(P.a_max, a)), d)
+        a, d = self.law(s, self.target) if not self.gave_up else (-(s.v / P.tau_accel_s + s.a), 0.0)
+        return to_action(P, max(P.accel_min, min(P.accel_max, a)), d)
 
 
 def _back_to(s, t):

@@ -292,7 +292,7 @@ def test_mirror_plans_end_settled_so_no_stop_rolls_back_across_zero(monkeypatch)
         )
         policy = MirrorPolicy(cfg)
         info, _ = run_episode(env, policy, case)
-        results[settled] = (info, [_rolls_back(p, env.params.tau_a) for p in policy.plans])
+        results[settled] = (info, [_rolls_back(p, env.params.tau_accel_s) for p in policy.plans])
     info, back = results[True]
     assert info["is_success"] and info["direction_switches"] == 1
     assert not any(back)

@@ -22,7 +22,7 @@ from planners.hybrid_astar.policy import HybridAStarPolicy
 from planners.hybrid_astar.search import HybridAStar, HybridAStarConfig
 
 P = VehicleParams.table_ii()
-R = P.wheelbase / math.tan(P.max_steer)
+R = P.wheelbase / math.tan(P.max_steer_rad)
 
 
 def test_reeds_shepp_on_an_empty_map_stays_within_limits():

@@ -675,7 +675,7 @@ def test_a_plan_that_stops_hard_next_to_an_obstacle_is_not_safe():
     g = Scenario.from_case_id("parallel_rw3.50_sl4.22_sw2.50_th+0_y2.60").build()
     checks = Checks(g, CoreConfig())
     xi0 = np.array([1.906, 1.819, 0.247, -0.280, 2.761, 0.523])  # reversing, braking hard
-    u = np.array([[g.vehicle.a_max, 0.995 * g.vehicle.max_steer]])
+    u = np.array([[g.vehicle.accel_max, 0.995 * g.vehicle.max_steer_rad]])
     end = checks.truth.rollout(xi0, u)
     start = checks.start(xi0)
     assert abs(end[-1, 3]) < 0.05 and end[-1, 4] > 2.0  # standing, still accelerating forward
@@ -808,8 +808,8 @@ def test_the_compiled_seed_rollouts_repeat_the_numpy_loop_bit_for_bit():
         want[:, 0] = xi0
         state = np.repeat(xi0[None], K, axis=0)
         for i in range(N):
-            a_cmd = np.clip(3.0 * (v_ref[:, i] - state[:, 3]) - 0.5 * state[:, 4], p.a_min, p.a_max)
-            d_cmd = np.clip(2.5 * (th_ref[:, i] - state[:, 2]) * sgn[:, i], -p.max_steer, p.max_steer)
+            a_cmd = np.clip(3.0 * (v_ref[:, i] - state[:, 3]) - 0.5 * state[:, 4], p.accel_min, p.accel_max)
+            d_cmd = np.clip(2.5 * (th_ref[:, i] - state[:, 2]) * sgn[:, i], -p.max_steer_rad, p.max_steer_rad)
             sub = np.array([coarse.step(state[k], a_cmd[k], d_cmd[k])[:, :6] for k in range(K)])
             want[:, 1 + i * coarse.n : 1 + (i + 1) * coarse.n] = sub
             state = sub[:, -1]

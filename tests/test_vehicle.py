@@ -46,17 +46,17 @@ def test_lags_are_first_order_and_exact():
     m = TruthModel(P, 0.1, 0.01)
     traj = run(m, [0, 0, 0, 0, 0, 0], [(2.0, 0.5)] * 5)
     t = 0.1 * np.arange(6)
-    np.testing.assert_allclose(traj[:, 4], 2.0 * (1 - np.exp(-t / P.tau_a)), atol=1e-12)
-    np.testing.assert_allclose(traj[:, 5], 0.5 * (1 - np.exp(-t / P.tau_delta)), atol=1e-12)
+    np.testing.assert_allclose(traj[:, 4], 2.0 * (1 - np.exp(-t / P.tau_accel_s)), atol=1e-12)
+    np.testing.assert_allclose(traj[:, 5], 0.5 * (1 - np.exp(-t / P.tau_steer_s)), atol=1e-12)
     # v = integral of a, in closed form.
-    v = 2.0 * (t - P.tau_a * (1 - np.exp(-t / P.tau_a)))
+    v = 2.0 * (t - P.tau_accel_s * (1 - np.exp(-t / P.tau_accel_s)))
     np.testing.assert_allclose(traj[:, 3], v, atol=1e-12)
 
 
 def test_straight_line_distance_matches_closed_form():
     m = TruthModel(P, 0.1, 0.01)
     traj = run(m, [0, 0, 0, 0, 0, 0], [(1.0, 0.0)] * 10)
-    t, tau = 1.0, P.tau_a
+    t, tau = 1.0, P.tau_accel_s
     x = t**2 / 2 - tau * (t - tau * (1 - math.exp(-t / tau)))
     assert traj[-1, 0] == pytest.approx(x, abs=1e-5)
     assert traj[-1, 1] == 0.0
@@ -65,9 +65,9 @@ def test_straight_line_distance_matches_closed_form():
 def test_commands_and_speed_saturate():
     m = TruthModel(P, 0.1, 0.01)
     traj = run(m, [0, 0, 0, 0, 0, 0], [(50.0, 2.0)] * 40)
-    assert traj[:, 3].max() == pytest.approx(P.v_max)
-    assert traj[:, 4].max() <= P.a_max + 1e-12
-    assert np.abs(traj[:, 5]).max() <= P.max_steer + 1e-12
+    assert traj[:, 3].max() == pytest.approx(P.speed_max)
+    assert traj[:, 4].max() <= P.accel_max + 1e-12
+    assert np.abs(traj[:, 5]).max() <= P.max_steer_rad + 1e-12
 
 
 @pytest.mark.parametrize("substep", [0.01, 0.05])
@@ -91,32 +91,32 @@ def test_rollout_equals_chained_steps(substep, saturating):
     fast = m.rollout(state, cmds)
     assert fast.shape == chained.shape == (60 * round(0.1 / substep), 7)
     assert np.array_equal(fast, chained)
-    assert (chained[:, 3].max() >= P.v_max - 1e-12) == saturating
+    assert (chained[:, 3].max() >= P.speed_max - 1e-12) == saturating
 
 
 def _reference_step(m: TruthModel, state, a_cmd: float, delta_cmd: float) -> np.ndarray:
     """The truth model's step written out in Python (the module docstring's model): exact
     lags, arcs of the sub-step's mean speed at its mid-step steering, commands clipped."""
     p = m.params
-    a_cmd, delta_cmd = min(max(a_cmd, p.a_min), p.a_max), min(max(delta_cmd, -p.max_steer), p.max_steer)
+    a_cmd, delta_cmd = min(max(a_cmd, p.accel_min), p.accel_max), min(max(delta_cmd, -p.max_steer_rad), p.max_steer_rad)
     x, y, th, v, a0, d0 = map(float, state[:6])
     h, inv_l = m.h, 1.0 / p.wheelbase
-    dv_lag = p.tau_a * (1.0 - math.exp(-h / p.tau_a))
+    dv_lag = p.tau_accel_s * (1.0 - math.exp(-h / p.tau_accel_s))
     da, dd = a0 - a_cmd, d0 - delta_cmd
     rows = []
     for k in range(m.n):
-        v1 = v + a_cmd * h + da * math.exp(-k * h / p.tau_a) * dv_lag
-        v1 = p.v_min if v1 < p.v_min else (p.v_max if v1 > p.v_max else v1)
+        v1 = v + a_cmd * h + da * math.exp(-k * h / p.tau_accel_s) * dv_lag
+        v1 = p.speed_min if v1 < p.speed_min else (p.speed_max if v1 > p.speed_max else v1)
         ds = 0.5 * (v + v1) * h
-        dth = ds * math.tan(delta_cmd + dd * math.exp(-(k + 0.5) * h / p.tau_delta)) * inv_l
+        dth = ds * math.tan(delta_cmd + dd * math.exp(-(k + 0.5) * h / p.tau_steer_s)) * inv_l
         half = 0.5 * dth
         chord = ds * math.sin(half) / half if abs(half) > 1e-12 else ds
         x += chord * math.cos(th + half)
         y += chord * math.sin(th + half)
         th += dth
         v = v1
-        a = a_cmd + da * math.exp(-(k + 1) * h / p.tau_a)
-        d = delta_cmd + dd * math.exp(-(k + 1) * h / p.tau_delta)
+        a = a_cmd + da * math.exp(-(k + 1) * h / p.tau_accel_s)
+        d = delta_cmd + dd * math.exp(-(k + 1) * h / p.tau_steer_s)
         rows.append((x, y, th, v, a, d, abs(chord)))
     return np.array(rows)
 
@@ -142,7 +142,7 @@ def test_the_compiled_step_is_the_python_reference_bit_for_bit(substep):
     a_cmd, d_cmd = rng.uniform(-6, 4, k), rng.uniform(-0.8, 0.8, k)
     states[:5, 3], states[:5, 4], a_cmd[:5] = 0.0, 0.0, 0.0  # standing still
     states[5:10, 5], d_cmd[5:10] = 0.0, 0.0  # straight
-    states[10:15, 3], a_cmd[10:15] = P.v_max, 4.0  # saturating
+    states[10:15, 3], a_cmd[10:15] = P.speed_max, 4.0  # saturating
     for i in range(k):
         assert np.array_equal(m.step(states[i], a_cmd[i], d_cmd[i]), _reference_step(m, states[i], a_cmd[i], d_cmd[i]))
 
@@ -150,7 +150,7 @@ def test_the_compiled_step_is_the_python_reference_bit_for_bit(substep):
 @pytest.mark.parametrize("lags", [False, True])
 def test_theorem_2_negated_commands_give_the_point_reflected_path(lags):
     """Eq. (7)-(9): same start, opposite speed, negated commands -> x, y negated, theta equal."""
-    params = P if lags else dataclasses.replace(P, tau_a=1e-9, tau_delta=1e-9)
+    params = P if lags else dataclasses.replace(P, tau_accel_s=1e-9, tau_steer_s=1e-9)
     m = TruthModel(params, 0.1, 0.01)
     rng = np.random.default_rng(0)
     # Within the symmetric part of the bounds (|a| <= 3): a negated command is not clipped.
@@ -159,7 +159,7 @@ def test_theorem_2_negated_commands_give_the_point_reflected_path(lags):
     a0, d0 = (0.7, -0.2) if lags else (0.0, 0.0)
     fwd = run(m, [0, 0, 0.4, 1.2, a0, d0], cmds)
     back = run(m, [0, 0, 0.4, -1.2, -a0, -d0], [(-a, -d) for a, d in cmds])
-    assert np.abs(fwd[:, 3]).max() < P.v_max  # no saturation, so the symmetry is exact
+    assert np.abs(fwd[:, 3]).max() < P.speed_max  # no saturation, so the symmetry is exact
     np.testing.assert_allclose(back[:, 0], -fwd[:, 0], atol=1e-12)
     np.testing.assert_allclose(back[:, 1], -fwd[:, 1], atol=1e-12)
     np.testing.assert_allclose(back[:, 2], fwd[:, 2], atol=1e-12)

@@ -116,20 +116,20 @@ class PathTracker:
         speed = abs(v)
         if self.phase == "drive":
             # Distance the hold law of _hold rolls on from here: 2 tau v + tau^2 a (along the gear).
-            roll = 2.0 * p.tau_a * speed + p.tau_a**2 * gear * a
+            roll = 2.0 * p.tau_accel_s * speed + p.tau_accel_s**2 * gear * a
             if remaining <= max(roll, 0.005):
                 self.phase = "stop"
         if self.phase == "stop":
             if speed < 0.01 and abs(a) < 0.2:
                 return self._next_segment(x, y, theta, v, a, delta)
             return self._hold(v, a, delta)
-        kappa_ref = self._kappa_at(s_now + speed * p.tau_delta + 0.05, i0, i1)
+        kappa_ref = self._kappa_at(s_now + speed * p.tau_steer_s + 0.05, i0, i1)
         kappa = kappa_ref - self.e_y / cfg.preview**2 - gear * 2.0 * self.e_theta / cfg.preview
         steer = self._steer_for(kappa)
-        room = max(remaining - 2.0 * p.tau_a * speed, 0.0)
+        room = max(remaining - 2.0 * p.tau_accel_s * speed, 0.0)
         v_ref = min(cfg.cruise_speed, math.sqrt(2.0 * cfg.decel * room), speed + cfg.accel * 0.5 + 0.1)
         acc = cfg.speed_gain * (gear * v_ref - v)
-        return max(p.a_min, min(p.a_max, acc)), steer
+        return max(p.accel_min, min(p.accel_max, acc)), steer
 
     def _next_segment(self, x: float, y: float, theta: float, v: float, a: float, delta: float) -> tuple[float, float]:
         if self.seg + 1 >= len(self.segments):
@@ -141,7 +141,7 @@ class PathTracker:
         return self.command_at(x, y, theta, v, a, delta)
 
     def _clip_steer(self, delta: float) -> float:
-        return max(-self.params.max_steer, min(self.params.max_steer, delta))
+        return max(-self.params.max_steer_rad, min(self.params.max_steer_rad, delta))
 
     def _steer_for(self, kappa: float) -> float:
         return self._clip_steer(math.atan(self.params.wheelbase * kappa))
@@ -162,4 +162,4 @@ def hold_accel(p: VehicleParams, v: float, a: float) -> float:
     With the acceleration lag tau, a_cmd = -(v / tau + a) makes the speed critically
     damped (double pole at -1/tau): from speed v0 it rolls on 2 tau v0 + tau^2 a0.
     """
-    return max(p.a_min, min(p.a_max, -(v / p.tau_a + a)))
+    return max(p.accel_min, min(p.accel_max, -(v / p.tau_accel_s + a)))

@@ -173,7 +173,7 @@ class TrackedRollout:
         poses = np.ascontiguousarray(path.poses[:, :3], dtype=float)
         segments = np.array(tracker.segments, np.int64).reshape(-1, 2)
         tc = np.array([cfg.cruise_speed, cfg.accel, cfg.decel, cfg.preview, cfg.speed_gain, cfg.steer_tolerance], float)
-        vc = np.array([p.a_min, p.a_max, p.max_steer, p.wheelbase, p.tau_a, p.tau_delta], float)
+        vc = np.array([p.accel_min, p.accel_max, p.max_steer_rad, p.wheelbase, p.tau_accel_s, p.tau_steer_s], float)
         return _track(
             np.array([float(v) for v in state[:6]]),
             poses[:, 0].copy(),

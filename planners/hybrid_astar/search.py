@@ -100,7 +100,7 @@ class HybridAStar:
         self.geometry = geometry
         self.cfg = cfg = config or HybridAStarConfig()
         car = geometry.vehicle
-        self.kappa_max = cfg.steer_fraction * math.tan(car.max_steer) / car.wheelbase
+        self.kappa_max = cfg.steer_fraction * math.tan(car.max_steer_rad) / car.wheelbase
         self.rs = ReedsShepp(1.0 / self.kappa_max)
         self.checker = geometry.checker
         self.criteria = SuccessCriteria(geometry)

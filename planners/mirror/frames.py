@@ -54,7 +54,7 @@ def planned_controls(
 ) -> np.ndarray:
     """Commands that reproduce a rollout's lag states, in the planned frame."""
     pl = to_planned(real_half, cand, substeps)
-    ea, ed = math.exp(-dt / params.tau_a), math.exp(-dt / params.tau_delta)
+    ea, ed = math.exp(-dt / params.tau_accel_s), math.exp(-dt / params.tau_steer_s)
     a0, a1 = pl[:-1, XI_A], pl[1:, XI_A]
     d0, d1 = pl[:-1, XI_D], pl[1:, XI_D]
     if cand.switch is not None:  # step s starts from the flipped lag states

@@ -30,7 +30,7 @@ class PlanningModel:
         self.params, self.dt, self.n_sub = params, dt, n_sub
         h = dt / n_sub
         self.h = h
-        ta, td = params.tau_a, params.tau_delta
+        ta, td = params.tau_accel_s, params.tau_steer_s
         self._ea0 = np.array([math.exp(-j * h / ta) for j in range(n_sub)])
         self._edm = np.array([math.exp(-(j + 0.5) * h / td) for j in range(n_sub)])
         self._dv_lag = ta * (1 - math.exp(-h / ta))
@@ -86,11 +86,11 @@ class PlanningModel:
         A_[:, Y, TH] = dt * v * ca
         A_[:, TH, D] = dt * v / p.wheelbase
         A_[:, V, A] = dt
-        A_[:, A, A] = 1 - dt / p.tau_a
-        A_[:, D, D] = 1 - dt / p.tau_delta
+        A_[:, A, A] = 1 - dt / p.tau_accel_s
+        A_[:, D, D] = 1 - dt / p.tau_steer_s
         B_ = np.zeros((n, NX, NU))
-        B_[:, A, 0] = dt / p.tau_a
-        B_[:, D, 1] = dt / p.tau_delta
+        B_[:, A, 0] = dt / p.tau_accel_s
+        B_[:, D, 1] = dt / p.tau_steer_s
         c_ = np.zeros((n, NX))
         c_[:, X] = dt * v * sa * angle
         c_[:, Y] = -dt * v * ca * angle

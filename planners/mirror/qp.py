@@ -101,7 +101,7 @@ class MirrorQP:
         creeping back at 2 cm/s has no forward plan at all (the bound fails at step 1)."""
         A_, B_, c_ = lin
         d = cand.direction
-        u = np.array([self.p.a_max if d > 0 else self.p.a_min, xi0[XI_D]])
+        u = np.array([self.p.accel_max if d > 0 else self.p.accel_min, xi0[XI_D]])
         last = cand.switch if cand.switch is not None else self.N
         xi, x_l, x_u = xi0.copy(), x_l.copy(), x_u.copy()
         for k in range(last):
@@ -197,17 +197,17 @@ def _box(p: VehicleParams, N: int, nz: int, xi: np.ndarray, ui: np.ndarray, cand
     x_l, x_u = np.full(nz, -np.inf), np.full(nz, np.inf)
     steps = np.arange(1, N + 1)
     after = (steps > s) if s is not None else np.zeros(N, bool)
-    v_lo, v_hi = (0.0, p.v_max) if cand.direction > 0 else (p.v_min, 0.0)
+    v_lo, v_hi = (0.0, p.speed_max) if cand.direction > 0 else (p.speed_min, 0.0)
     xv, xa, xd = (xi[steps, j] for j in (XI_V, XI_A, XI_D))
     x_l[xv], x_u[xv] = v_lo, v_hi
-    x_l[xa] = np.where(after, -p.a_max, p.a_min)
-    x_u[xa] = np.where(after, -p.a_min, p.a_max)
-    x_l[xd], x_u[xd] = -p.max_steer, p.max_steer
+    x_l[xa] = np.where(after, -p.accel_max, p.accel_min)
+    x_u[xa] = np.where(after, -p.accel_min, p.accel_max)
+    x_l[xd], x_u[xd] = -p.max_steer_rad, p.max_steer_rad
     after_u = (np.arange(N) >= s) if s is not None else np.zeros(N, bool)
     ua, ud = ui[:, 0], ui[:, 1]
-    x_l[ua] = np.where(after_u, -p.a_max, p.a_min)
-    x_u[ua] = np.where(after_u, -p.a_min, p.a_max)
-    x_l[ud], x_u[ud] = -p.max_steer, p.max_steer
+    x_l[ua] = np.where(after_u, -p.accel_max, p.accel_min)
+    x_u[ua] = np.where(after_u, -p.accel_min, p.accel_max)
+    x_l[ud], x_u[ud] = -p.max_steer_rad, p.max_steer_rad
     for i in ([s] if s is not None else []) + [N]:  # stands at the switch; every plan ends stopped
         x_l[ix(i, XI_V)] = x_u[ix(i, XI_V)] = 0.0
     if settled:  # the end's lagged acceleration may not point back: the car would roll across zero

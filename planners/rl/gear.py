@@ -52,7 +52,7 @@ def standing(obs: dict[str, np.ndarray], params: VehicleParams | None = None) ->
     """Which rows of a (batched) observation stand still."""
     p = params or VehicleParams.table_ii()
     o = np.asarray(obs["observation"]).reshape(-1, 13)
-    return np.abs(o[:, 4] * p.v_max) <= STAND_SPEED
+    return np.abs(o[:, 4] * p.speed_max) <= STAND_SPEED
 
 
 class GearedModel:
@@ -98,7 +98,7 @@ class GearedModel:
             p = self.params
             o = np.asarray(obs["observation"]).reshape(-1, 13)
             logits = self.gear_logits(obs) if features is None else self._logits(features)
-            ready = np.abs((o[:, 6] - acts[:, 1]) * p.max_steer) < STEER_TOLERANCE
+            ready = np.abs((o[:, 6] - acts[:, 1]) * p.max_steer_rad) < STEER_TOLERANCE
             go = np.where(logits > 0, self.go[0], self.go[1]).astype(np.float32)
             acts[:, 0] = np.where(stand, np.where(ready, go, 0.0), acts[:, 0])
         return (acts if batched else acts[0]), state
