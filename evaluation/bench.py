@@ -10,16 +10,17 @@ from __future__ import annotations
 import statistics
 import time
 
+import gymnasium as gym
 import numpy as np
 
+import mirrorpark_env  # noqa: F401
 from mirrorpark_env.scenario import Scenario
+
+from .runner import run_case
 
 
 def env_steps_per_second(steps: int = 5000, repeats: int = 5) -> dict:
     """MirrorPark-v0 stepping without rendering, seeded random actions, resets included."""
-    import gymnasium as gym
-
-    import mirrorpark_env  # noqa: F401
 
     env = gym.make("MirrorPark-v0").unwrapped  # the raw env: no checker wrappers
     rng = np.random.default_rng(0)
@@ -55,7 +56,6 @@ def stage_shares(stats: list) -> dict[str, float] | None:
 
 def planning_times(planners: list[str], case_ids: list[str]) -> dict:
     """Every planning call of each planner over the same closed-loop episodes."""
-    from .runner import run_case
 
     out = {}
     for p in planners:

@@ -7,7 +7,11 @@ import json
 from pathlib import Path
 
 from mirrorpark_env.grid import default_grid_cases
+from mirrorpark_env.layout_io import load_many
 from mirrorpark_env.scenario import Scenario
+from mirrorpark_env.vehicle import vehicle_named
+
+from .runner import unique
 
 CASE_FIELDS = ("parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "y0")
 
@@ -43,7 +47,6 @@ def chunk(items: list, spec: str | None) -> list:
 def cases_from(sample: str, case_file: str | None, types: list[str] | None) -> tuple[list[Scenario], int]:
     """A case file's cases (filtered by ``types``, repeats dropped) or a grid sample's, and
     how many repeats were dropped."""
-    from .runner import unique
 
     if not case_file:
         return from_sample(sample, types=types), 0
@@ -60,10 +63,6 @@ def layouts_from(paths: list[str], types: list[str] | None, vehicle: str | None 
     names dropped, and how many were dropped. ``vehicle``: every layout's car (a name or a
     YAML file, ``vehicle.vehicle_named``) instead of its file's. Invalid files are refused
     all together, each named with its problem."""
-    from mirrorpark_env.layout_io import load_many
-    from mirrorpark_env.vehicle import vehicle_named
-
-    from .runner import unique
 
     layouts = load_many(paths, vehicle_named(vehicle) if vehicle is not None else None)
     if types:

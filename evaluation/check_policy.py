@@ -6,8 +6,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
+import mirrorpark_env  # noqa: F401
 from planners.base import PlanStats, Policy
 
 CASE = "reverse_rw7.00_sl4.82_sw2.32_th+40_y3.00"  # an easy reverse slot: every planner here parks it
@@ -18,9 +20,6 @@ def check_policy(policy: Policy, case_id: str = CASE, steps: int = 30) -> list[s
     ``reset(geometry)`` and ``act(obs, info)`` callable as the runner calls them; every action
     a finite float array of shape (2,) in [-1, 1]; ``stats`` a list of ``PlanStats``;
     ``status`` a string; ``gave_up`` a bool."""
-    import gymnasium as gym
-
-    import mirrorpark_env  # noqa: F401
 
     env = gym.make("MirrorPark-v0").unwrapped
     obs, info = env.reset(options={"scenario": case_id})

@@ -5,21 +5,35 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
+import warnings
 from pathlib import Path
 
-from mirrorpark_env.config import PARKING_TYPES
+from mirrorpark_env.config import PARKING_TYPES, GridConfig, default_grid, load
+from mirrorpark_env.grid import Grid
 
 from . import registry
+from .bench import run
+from .cases import cases_from, chunk, from_sample, layouts_from
+from .check_policy import check_policy
 from .cli_compare import add_compare
 from .cli_export import add_export
 from .cli_lots import add_lots
 from .cli_rl import add_train_rl
+from .collect import collect
+from .demo import run_demo
+from .diff import compare, format_diff
+from .layout_report import write_layout_report
+from .metrics import summary
+from .mirror_demo import mirror_demo
+from .registry import MAIN, make_policy
+from .report import write_report
+from .runner import evaluate
+from .store import export_table, read_results
 
 
 def cmd_grid(args: argparse.Namespace) -> int:
-    from mirrorpark_env.config import GridConfig, default_grid, load
-    from mirrorpark_env.grid import Grid
 
     cfg = load(GridConfig, args.config) if args.config else default_grid()
     counts = Grid.from_config(cfg).counts()
@@ -33,8 +47,6 @@ def cmd_grid(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from .demo import run_demo
-    from .mirror_demo import mirror_demo
 
     for name, path in run_demo(Path(args.out)).items():
         print(f"wrote {path}  ({name})")
@@ -50,7 +62,6 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def _cases(args: argparse.Namespace):
     """The cases (``--cases``/``--sample``) or layouts (``--layouts``) to run, filtered by
     ``--types``; repeats are reported and run once."""
-    from .cases import cases_from, chunk, layouts_from
 
     if getattr(args, "layouts", None):
         items, repeats = layouts_from(args.layouts, args.types, getattr(args, "vehicle", None))
@@ -66,9 +77,6 @@ def _cases(args: argparse.Namespace):
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from .metrics import summary
-    from .runner import evaluate
-    from .store import read_results
 
     scenarios = _cases(args)
     out = Path(args.out)
@@ -89,14 +97,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     ids = {sc.case_id for sc in scenarios}
     df = df[df["case_id"].isin(ids) & (df["planner"] == args.planner)]
     if args.export:
-        from .store import export_table
-
         envs = store.environments()  # every run into this results folder
         print(f"wrote {export_table(df, args.export, args.planner, args.chunk, envs)}", file=sys.stderr)
     s = summary(df, args.planner)
     if args.layouts:
-        from .layout_report import write_layout_report
-
         report = write_layout_report(read_results([out]), scenarios, out)
         if not args.json:
             print(f"{args.planner}: {s['cases']} layouts; report in {report}")
@@ -123,7 +127,6 @@ def _writable_folder(folder: Path, what: str) -> None:
 
 
 def cmd_collect(args: argparse.Namespace) -> int:
-    from .collect import collect
 
     path = collect(
         args.planner, _cases(args), Path(args.out), args.workers, progress=not args.quiet, mixed_code=args.mixed_code
@@ -133,8 +136,6 @@ def cmd_collect(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from .report import write_report
-    from .store import read_results
 
     path = write_report(read_results(args.results), args.out, baseline=args.baseline, notes=args.notes)
     print(f"wrote {path}")
@@ -142,8 +143,6 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def cmd_diff(args: argparse.Namespace) -> int:
-    from .diff import compare, format_diff
-    from .store import read_results
 
     d = compare(read_results(args.before), read_results(args.after), by=args.by)
     if args.json:
@@ -155,10 +154,6 @@ def cmd_diff(args: argparse.Namespace) -> int:
 
 def cmd_main(args: argparse.Namespace) -> int:
     """The main job: a smoke evaluation of the main planners (registry.MAIN), then the report."""
-    from .registry import MAIN
-    from .report import write_report
-    from .runner import evaluate
-    from .store import read_results
 
     scenarios = _cases(args)
     out = Path(args.out)
@@ -172,9 +167,6 @@ def cmd_main(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from .bench import run
-    from .cases import from_sample
-    from .registry import MAIN
 
     sample = [sc.case_id for sc in from_sample(args.sample)]
     n = min(args.cases, len(sample))
@@ -202,8 +194,6 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_check_planner(args: argparse.Namespace) -> int:
-    from .check_policy import check_policy
-    from .registry import make_policy
 
     problems = check_policy(make_policy(args.planner), steps=args.steps)
     if problems:
@@ -368,7 +358,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _one_line_warnings() -> None:
     """Warnings (a damaged results folder, say) as one line each, without source code."""
-    import warnings
 
     def show(message, category, filename, lineno, file=None, line=None):
         print(f"mirrorpark: warning: {message}", file=sys.stderr)
@@ -380,7 +369,6 @@ def _stop_on_sigterm() -> list[bool]:
     """Make SIGTERM (``kill``, a scheduler's stop, ``timeout``) stop a run as Ctrl-C does:
     without it the process dies at once, and its worker processes run on, orphaned, into
     the case in hand (1.4 s on with cases of 1 s). Returns a flag set when SIGTERM came."""
-    import signal
 
     came = [False]
 

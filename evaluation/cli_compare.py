@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .committed import committed_rows
+from .compare import markdown, paired_table, run_table, success_figure
+from .store import read_results
+
 
 def add_compare(sub) -> None:
     c = sub.add_parser(
@@ -26,8 +30,6 @@ def add_compare(sub) -> None:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from .compare import markdown, paired_table, run_table, success_figure
-    from .store import read_results
 
     found = [
         (planner, path, rows)
@@ -37,8 +39,6 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if not found:
         raise ValueError("runs: no rows in the runs given")
     if args.against:
-        from .committed import committed_rows
-
         cases = set.intersection(*(set(rows["case_id"]) for _, _, rows in found))
         for planner in filter(None, (p.strip() for p in args.against.split(","))):
             rows, same = committed_rows(planner, cases, args.grid, args.allow_other_code)

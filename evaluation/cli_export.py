@@ -5,6 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from .store import read_results
+from .trajectories import write_trajectories
+
 
 def add_export(sub) -> None:
     x = sub.add_parser("export", help="write a run's driven trajectories, one file per episode")
@@ -16,8 +19,6 @@ def add_export(sub) -> None:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from .store import read_results
-    from .trajectories import write_trajectories
 
     df = read_results(args.runs)
     if args.planner is not None:

@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from mirrorpark_env.layout_io import write_layout
+from mirrorpark_env.lots import generate_lot
+from mirrorpark_env.vehicle import vehicle_named
+
 
 def add_lots(sub, positive_int) -> None:
     p = sub.add_parser("lots", help="write generated parking lots (seeded, levels 1-4) as layout files")
@@ -17,9 +21,6 @@ def add_lots(sub, positive_int) -> None:
 
 
 def cmd_lots(args: argparse.Namespace) -> int:
-    from mirrorpark_env.layout_io import write_layout
-    from mirrorpark_env.lots import generate_lot
-    from mirrorpark_env.vehicle import vehicle_named
 
     if args.seed < 0:
         raise ValueError(f"--seed: a whole number >= 0, got {args.seed}")

@@ -9,6 +9,8 @@ from pathlib import Path
 
 from mirrorpark_env.config import PARKING_TYPES
 
+from .registry import make_policy
+
 
 def add_train_rl(sub, positive_int: Callable[[str], int]) -> None:
     """The ``train-rl`` subcommand and its arguments."""
@@ -83,7 +85,6 @@ def cmd_train_rl(args: argparse.Namespace) -> int:
         raise ValueError(
             f"train-rl needs the rl extra ({err.name} is missing): pip install torch==2.13.0 && pip install -e '.[rl]'"
         ) from None
-    from .registry import make_policy
 
     cfg = _rl_config(args)
     if cfg.algo == "tqc":

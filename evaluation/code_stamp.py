@@ -21,6 +21,9 @@ import importlib.util
 import sys
 from pathlib import Path
 
+from evaluation.registry import make_policy
+from mirrorpark_env.config import default_config_path
+
 ROOTS = ("mirrorpark_env", "planners")  # followed wherever imported
 # The environment (gymnasium makes it by name, not by import) and an episode into a row.
 ROW_MODULES = ("mirrorpark_env.env", "evaluation.episode", "evaluation.causes")
@@ -69,7 +72,6 @@ def code_files(start: list[str]) -> dict[str, Path]:
 
 def policy_modules(planner: str) -> list[str]:
     """The modules of ``planner``'s policy class and of a policy it wraps."""
-    from evaluation.registry import make_policy
 
     policy = make_policy(planner)
     inner = [v for v in vars(policy).values() if type(v).__module__.split(".")[0] in ROOTS]
@@ -79,7 +81,6 @@ def policy_modules(planner: str) -> list[str]:
 def code_id(planner: str) -> str:
     """A short hash of the code that decides ``planner``'s rows (module names and contents,
     wherever installed, and the environment's configs)."""
-    from mirrorpark_env.config import default_config_path
 
     files = code_files([*policy_modules(planner), *ROW_MODULES])
     h = hashlib.sha256()

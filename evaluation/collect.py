@@ -16,11 +16,13 @@ import numpy as np
 from mirrorpark_env.scenario import Scenario
 from planners.rl.demos import build_dataset, record_episode
 
+from .provenance import check_resume
+from .registry import make_policy
 from .runner import progress_bar, run_parallel, slot_of, unique, worker_env
+from .store import read_environments, record_environment
 
 
 def _record_to_file(args: tuple[str, Scenario, str]) -> str:
-    from .registry import make_policy
 
     planner, sc, folder = args
     data = record_episode(worker_env(), make_policy(planner), sc)
@@ -43,9 +45,6 @@ def collect(
     """Record ``planner``'s episodes on ``scenarios`` into ``out``; resume where it stopped,
     if the episodes there are ``planner``'s and came from this code (``mixed_code``: whatever
     code they came from). Returns the Minari dataset's folder."""
-    from .provenance import check_resume
-    from .registry import make_policy
-    from .store import read_environments, record_environment
 
     make_policy(planner)  # an unknown planner fails now
     workers = (os.cpu_count() or 1) if workers is None else workers

@@ -16,6 +16,9 @@ from pathlib import Path
 
 import pandas as pd
 
+from .code_stamp import code_id
+from .store import environments_of
+
 GRID_DIR = Path(__file__).resolve().parents[1] / "results" / "grid"
 MANIFEST = "code_ids.json"
 
@@ -24,7 +27,6 @@ def _stamp(path: Path, planner: str, manifest: dict) -> tuple[str | None, str]:
     """(code_id, commit or '') of the table at ``path``: the manifest's where it names the
     file (a curated record, which may also say that later code, changed only in what decides
     no row, gives the same rows), else its metadata's."""
-    from .store import environments_of
 
     entry = manifest.get(path.name)
     if entry is not None:
@@ -39,7 +41,6 @@ def committed_rows(
     """The committed rows of ``planner`` for ``case_ids`` and whether they came from the
     installed code. Raises ``ValueError`` (one line) where a case has no committed row, or
     where the rows came from other code and ``allow_other_code`` is not set."""
-    from .code_stamp import code_id
 
     folder = Path(grid_dir) if grid_dir is not None else GRID_DIR
     files = sorted(folder.glob(f"{planner}-chunk*-of-*.parquet")) or sorted(folder.glob(f"{planner}.parquet"))

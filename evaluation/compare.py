@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import binomtest
 
+from .figures import pyplot
 from .metrics import comfortable, far_out
 
 Z = 1.959963984540054  # the normal's 97.5 % point
@@ -123,10 +124,7 @@ def markdown(df: pd.DataFrame) -> str:
 
 def success_figure(runs: dict[str, pd.DataFrame], path) -> None:
     """Success per parking type and run, with 95 % Wilson intervals, to ``path`` (PNG)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     types = ["parallel", "reverse", "angle"]
     fig, ax = plt.subplots(figsize=(6.4, 3.6))

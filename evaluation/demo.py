@@ -15,6 +15,8 @@ import numpy as np
 import mirrorpark_env  # noqa: F401  (registers MirrorPark-v0)
 from mirrorpark_env import Scenario, VehicleParams, to_action
 
+from .figures import pyplot
+
 SHOWCASE = {
     "parallel": Scenario.from_degrees("parallel", 4.0, 5.5, 2.5, 10, 2.0),
     "reverse": Scenario.from_degrees("reverse", 6.0, 4.82, 2.3, 0, 2.5),
@@ -40,10 +42,7 @@ def straight_back_episode(env: gym.Env, frames: list | None = None, every: int =
 
 
 def run_demo(out: Path) -> dict[str, Path]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     out.mkdir(parents=True, exist_ok=True)
     env = gym.make("MirrorPark-v0", render_mode="rgb_array")

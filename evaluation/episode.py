@@ -12,13 +12,17 @@ import time
 import traceback
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
+import mirrorpark_env  # noqa: F401
 from mirrorpark_env.criteria import iso_pose_exists
 from mirrorpark_env.layout import Layout
 from mirrorpark_env.scenario import Scenario
-from mirrorpark_env.vehicle import VehicleParams, vehicle_name
+from mirrorpark_env.vehicle import VehicleParams, from_action, vehicle_name
+from planners.base import run_episode
 
+from . import registry
 from .causes import episode_cause
 from .provenance import current_id
 from .schema import MARGINS
@@ -29,10 +33,6 @@ _ENV = None  # one environment per worker process
 def worker_env():
     global _ENV
     if _ENV is None:
-        import gymnasium as gym
-
-        import mirrorpark_env  # noqa: F401
-
         _ENV = gym.make("MirrorPark-v0")  # with its TimeLimit: episodes end at 180 s
     return _ENV
 
@@ -87,7 +87,6 @@ def trajectory_fields(trace: list[dict], actions: list, params: VehicleParams) -
     (time, rear-axle pose, speed, actual acceleration and steering), and the commands of each
     step (acceleration, steering; the last state has none: NaN). States are rounded to 0.1 mm
     and 1e-6 rad; commands are kept whole, so that the truth model replays them exactly."""
-    from mirrorpark_env.vehicle import from_action
 
     states = [i["vehicle_state"] for i in trace]
     commands = [from_action(params, a) for a in actions] + [(math.nan, math.nan)]
@@ -113,9 +112,6 @@ def run_case(
     (``trajectory_fields``, in the layout's frame) for figures and ``mirrorpark export
     --trajectories``. ``keep_stats``: a list that the policy's ``PlanStats`` of every call
     are appended to (the benchmark's breakdown)."""
-    from planners.base import run_episode
-
-    from .registry import make_policy
 
     t0 = time.perf_counter()
     row: dict[str, Any] = {"planner": planner}
@@ -123,7 +119,7 @@ def run_case(
     try:
         is_layout = isinstance(sc, Layout)
         row.update(layout_fields(sc) if is_layout else case_fields(sc))
-        policy = make_policy(planner)
+        policy = registry.make_policy(planner)  # looked up at call time: tests stand one in
         keep = trajectory or is_layout
         trace: list[dict] | None = [] if keep else None
         actions: list | None = [] if keep else None

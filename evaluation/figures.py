@@ -13,7 +13,9 @@ from .schema import column_label
 SLOT = {"parallel": "slot_length", "reverse": "slot_width", "angle": "slot_width"}
 
 
-def _plt():
+def pyplot():
+    """matplotlib's pyplot on the file-writing Agg backend, imported when a figure is drawn:
+    importing evaluation must not change the backend of a notebook that imports it."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -23,8 +25,7 @@ def _plt():
 
 
 def _save(fig, path: Path) -> Path:
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -36,7 +37,7 @@ def _rate_by(df: pd.DataFrame, col: str) -> pd.Series:
 
 
 def fig_success_by_type(df, planners, out: Path) -> Path:
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.2, 3.5))
     w = 0.8 / max(len(planners), 1)
     for j, p in enumerate(planners):
@@ -53,7 +54,7 @@ def fig_success_by_type(df, planners, out: Path) -> Path:
 
 
 def _per_type_lines(df, planners, col, out: Path, name: str, title: str, xlabel_fn) -> Path:
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.3), sharey=True)
     for ax, t in zip(axes, TYPES):
         for p in planners:
@@ -74,7 +75,7 @@ def _per_type_lines(df, planners, col, out: Path, name: str, title: str, xlabel_
 def fig_odd(cells: pd.DataFrame, planners, t: str, out: Path, sizes) -> Path:
     """The paper's Fig. 24 from the ODD cells: per slot size and y0, the share of start
     headings theta0 whose cell (road widths pooled) parks in >= 95 % of its runs."""
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, len(planners), figsize=(5.5 * len(planners), 4), squeeze=False)
     slot = SLOT[t]
     for ax, p in zip(axes[0], planners):
@@ -105,7 +106,7 @@ def _edges(v: np.ndarray) -> np.ndarray:
 
 def fig_clearance(df, planners, out: Path) -> Path:
     """Each episode's closest approach to an obstacle, and how fast the car was going there."""
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(11, 3.5))
     bins = np.arange(0, 21)  # [cm]
     for p in planners:
@@ -127,7 +128,7 @@ def fig_clearance(df, planners, out: Path) -> Path:
 
 
 def fig_efficiency(df, planners, out: Path) -> Path:
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(11, 3.5))
     ok = df[df["success"].fillna(False).astype(bool)]
     for ax, col, label in (
@@ -150,7 +151,7 @@ def fig_efficiency(df, planners, out: Path) -> Path:
 
 
 def fig_plan_time(df, planners, out: Path) -> Path:
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 3.5))
     for p in planners:
         d = df[df["planner"] == p]

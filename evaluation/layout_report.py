@@ -17,11 +17,13 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.patches import Polygon as Patch
 
 from mirrorpark_env.layout import Layout
 from mirrorpark_env.vehicle import VehicleParams, footprint
 
 from .compare import markdown
+from .figures import pyplot
 from .metrics import comfortable
 from .schema import with_every_column
 from .trajectories import tpcap_table
@@ -71,11 +73,7 @@ def summary_lines(df: pd.DataFrame) -> list[str]:
 
 def draw_layout(layout: Layout, rows: pd.DataFrame, path: Path) -> Path:
     """The layout with each planner's driven path (``path_x``/``path_y`` of its rows)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Polygon as Patch
+    plt = pyplot()
 
     v = layout.vehicle or VehicleParams.table_ii()
     fig, ax = plt.subplots(figsize=(6.4, 4.8))

@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from mirrorpark_env.config import PARKING_TYPES
-from mirrorpark_env.vehicle import VehicleParams
+from mirrorpark_env.vehicle import VEHICLES, VehicleParams, vehicle_named
 
 TYPES = PARKING_TYPES
 CELL = ("parking_type", "slot_length", "slot_width", "theta0_deg", "y0")  # road width pooled (the paper's ODD)
@@ -50,8 +50,6 @@ def comfortable(df: pd.DataFrame, vehicle: VehicleParams | None = None) -> pd.Se
     v = vehicle or VehicleParams.table_ii()
     length, width = pd.Series(v.length, index=df.index), pd.Series(v.width, index=df.index)
     if vehicle is None and "vehicle" in df:
-        from mirrorpark_env.vehicle import VEHICLES, vehicle_named
-
         cars = {n: vehicle_named(n) for n in VEHICLES}
         named = df["vehicle"].where(df["vehicle"].notna(), "paper")
         length = named.map(lambda n: cars[n].length if n in cars else math.inf).astype(float)

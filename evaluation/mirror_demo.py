@@ -14,6 +14,8 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+from matplotlib.animation import FuncAnimation, PillowWriter
+from matplotlib.patches import Polygon
 
 import mirrorpark_env  # noqa: F401  (registers MirrorPark-v0)
 from mirrorpark_env import Scenario
@@ -24,7 +26,7 @@ from planners.mirror.mirror_line import mirrored_target
 from planners.mirror.plans import Plan
 from planners.mirror.policy import MirrorPolicy
 
-from .figures import _plt
+from .figures import pyplot
 
 # One case per type in which a plan of the default planner holds its switch (many plans
 # switch only at their ends, where the mirror has nothing to show): Fig. 19-like manoeuvres.
@@ -89,7 +91,6 @@ def mirror_demo(
 def _scene(ax, g: ScenarioGeometry, focus: np.ndarray | None = None) -> None:
     """Obstacles, slot and target footprint; axes around ``focus`` points (x, y) plus 2 m,
     within the scene."""
-    from matplotlib.patches import Polygon
 
     for poly in g.obstacles.polygons:
         ax.add_patch(Polygon(poly, closed=True, facecolor="0.8", edgecolor="0.5", lw=0.8))
@@ -120,9 +121,8 @@ def _plan_goal(plan: Plan, g: ScenarioGeometry) -> tuple[float, float, float]:
 
 
 def _figure(g: ScenarioGeometry, states: np.ndarray, plans: list[Plan], info: dict, path: Path) -> Path:
-    from matplotlib.patches import Polygon
 
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(9, 6))
     focus = [_focus(g, states)]
     colours = plt.get_cmap("tab10").colors
@@ -183,10 +183,8 @@ def _figure(g: ScenarioGeometry, states: np.ndarray, plans: list[Plan], info: di
 
 
 def _animation(g: ScenarioGeometry, states: np.ndarray, times: list[float], path: Path, fps: int, every: int) -> Path:
-    from matplotlib.animation import FuncAnimation, PillowWriter
-    from matplotlib.patches import Polygon
 
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     _scene(ax, g, _focus(g, states))
     (trail,) = ax.plot([], [], "-", color="k", lw=1)

@@ -25,6 +25,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from mirrorpark_env.config import default_config_path
+
 PACKAGES = (
     "mirrorpark",
     "numpy",
@@ -120,7 +122,6 @@ ROW_CONFIGS = ("env.yaml", "vehicle.yaml")
 @functools.cache
 def _row_files() -> tuple[tuple[str, Path], ...]:
     """(name, path) of every file ``source_id`` reads, in a fixed order."""
-    from mirrorpark_env.config import default_config_path
 
     files: list[tuple[str, Path]] = []
     for name in ROW_MODULES:

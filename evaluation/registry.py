@@ -2,17 +2,22 @@
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from functools import partial
+from importlib.metadata import entry_points
 
 from planners.base import Policy
+from planners.common.slot_frame import InSlotFrame
+from planners.hybrid_astar.policy import HybridAStarPolicy
+from planners.mirror.guide_policy import GuideOnlyPolicy
+from planners.mirror.policy import MirrorPolicy
 from planners.mirror.presets import PRESETS as MIRROR_PRESETS
 from planners.mirror.presets import preset_config
 
 
 def _in_slot_frame(policy: Policy) -> Policy:
     """The mirror planner's parts plan in the slot's frame: any layout with a slot."""
-    from planners.common.slot_frame import InSlotFrame
 
     return InSlotFrame(policy)
 
@@ -20,7 +25,6 @@ def _in_slot_frame(policy: Policy) -> Policy:
 def mirror_policy(config) -> Policy:
     """A ``MirrorPolicy`` under ``config`` (a ``planners.mirror.config.MirrorPlannerConfig``),
     planning in the slot's frame as the registry's mirror planners do."""
-    from planners.mirror.policy import MirrorPolicy
 
     return _in_slot_frame(MirrorPolicy(config))
 
@@ -31,13 +35,11 @@ def _mirror(preset: str) -> Policy:
 
 
 def _guide_only() -> Policy:
-    from planners.mirror.guide_policy import GuideOnlyPolicy
 
     return _in_slot_frame(GuideOnlyPolicy())
 
 
 def _hybrid_astar() -> Policy:
-    from planners.hybrid_astar.policy import HybridAStarPolicy
 
     return HybridAStarPolicy()
 
@@ -67,7 +69,6 @@ ENTRY_POINTS = "mirrorpark.planners"  # the group through which an installed pac
 
 def _entry_points() -> dict:
     """Installed packages' planners: entry points of ``ENTRY_POINTS``, by name."""
-    from importlib.metadata import entry_points
 
     return {ep.name: ep for ep in entry_points(group=ENTRY_POINTS)}
 
@@ -96,7 +97,6 @@ def _built(what: str, factory) -> Policy:
 
 def _plugin(name: str) -> Policy:
     """The policy of ``package.module:factory``: any importable callable that returns one."""
-    import importlib
 
     module, _, attr = name.partition(":")
     if not module or not attr:

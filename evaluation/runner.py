@@ -6,18 +6,26 @@ Rows are appended to the store as they finish; a rerun over the same folder resu
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
+import multiprocessing as mp
 import os
 import queue
+import signal
 import sys
 from collections.abc import Callable, Hashable, Iterable
 from pathlib import Path
 from typing import Any
 
+from tqdm import tqdm
+
 from mirrorpark_env.layout import Layout
 from mirrorpark_env.scenario import Scenario
 
+from . import registry
 from .episode import run_case, worker_env
+from .provenance import check_resume
+from .registry import make_policy
 from .store import ResultStore, locked
 
 __all__ = ["evaluate", "run_case", "run_parallel", "slot_of", "unique", "worker_env"]
@@ -66,7 +74,6 @@ def evaluate(
     if its rows of ``planner`` came from this code (``provenance.check_resume``; ``mixed_code``:
     whatever code they came from). ``trajectories``: rows keep the driven trajectory (layout
     rows always do)."""
-    from .registry import make_policy
 
     make_policy(planner)  # an unknown planner fails now, not in every worker
     if backend not in ("local", "ray"):
@@ -92,7 +99,6 @@ def _run_into(
     trajectories: bool = False,
 ) -> None:
     """``evaluate``'s run, the folder locked: the cases not yet stored, their rows appended."""
-    from .provenance import check_resume
 
     done = store.done()
     check_resume(store.environments(), planner, sum(p == planner for p, _ in done), store.folder, mixed_code)
@@ -133,13 +139,10 @@ def _worker_signals() -> None:
     """Workers leave Ctrl-C to the parent, which stops them and keeps what is stored, and
     die at SIGTERM, which is how the parent stops them (a forked worker would otherwise
     inherit the command line's SIGTERM handler)."""
-    import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     if sys.platform.startswith("linux"):  # die with the parent, however it dies: SIGKILL leaves it no clean-up
-        import ctypes
-
         PR_SET_PDEATHSIG = 1
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
 
@@ -232,9 +235,6 @@ def _pool_context():
     worker hangs. So fork only a single-threaded process; otherwise start the workers from a
     fresh ``forkserver`` and pass them the planners registered at run time by reference.
     """
-    import multiprocessing as mp
-
-    from . import registry
 
     extra = {k: f for k, f in registry.PLANNERS.items() if registry.BUILTIN.get(k) is not f}
     if not hasattr(os, "fork"):
@@ -263,7 +263,6 @@ def _init_worker(extra: dict, results=None) -> None:
     """Workers leave Ctrl-C to the parent, know the planners registered at run time, and
     send their results on ``results``."""
     global _RESULTS
-    from . import registry
 
     _worker_signals()
     registry.PLANNERS.update(extra)
@@ -311,6 +310,5 @@ class _NoBar:
 def progress_bar(total: int, desc: str, enabled: bool, initial: int = 0):
     if not enabled:
         return _NoBar()
-    from tqdm import tqdm
 
     return tqdm(total=total, desc=desc, unit="case", initial=initial, dynamic_ncols=True, smoothing=0.1)

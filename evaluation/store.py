@@ -29,7 +29,11 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 
+from . import provenance
+from .code_stamp import code_id
 from .schema import EXPORT_COLUMNS, exported_values, type_error
 
 KEY = ["planner", "case_id"]
@@ -255,16 +259,14 @@ def record_environment(log: Path, planner: str, cases: int) -> None:
     """Append to ``log`` what a run of ``planner`` on ``cases`` cases runs on
     (``provenance.environment``) and the code it runs (``provenance.source_id``, and the
     planner's own ``code_stamp.code_id``)."""
-    from .code_stamp import code_id
-    from .provenance import environment, environment_id, source_files, source_id
-
-    env = environment()
-    line = {"id": environment_id(env), "planner": planner, "cases": cases, "source": source_id(planner), **env}
+    env = provenance.environment()
+    source = provenance.source_id(planner)
+    line = {"id": provenance.environment_id(env), "planner": planner, "cases": cases, "source": source, **env}
     try:  # this planner's code alone (``compare --against`` checks it)
         line["code"] = code_id(planner)
     except Exception:  # noqa: BLE001  (a stamp it cannot take must not stop the run; the rows go unstamped)
         line["code"] = None
-    line["source_files"] = source_files(planner)
+    line["source_files"] = provenance.source_files(planner)
     with log.open("a") as f:
         f.write(json.dumps(line) + "\n")
 
@@ -361,8 +363,6 @@ def export_table(
         k, n = chunk.split("/")
         name += f"-chunk{int(k):02d}-of-{int(n):02d}"
     out = exported_values(df[[c for c in EXPORT_COLUMNS if c in df.columns]].sort_values("case_id"))
-    import pyarrow as pa
-    import pyarrow.parquet as pq
 
     table = pa.Table.from_pandas(out, preserve_index=False)
     named = set(out["environment"].dropna()) if "environment" in out else set()
@@ -383,7 +383,6 @@ def export_table(
 
 def environments_of(path: str | Path) -> list[dict[str, Any]]:
     """The environments an exported table was run in (empty where none were recorded)."""
-    import pyarrow.parquet as pq
 
     raw = (pq.read_schema(path).metadata or {}).get(ENVIRONMENTS_KEY)
     return json.loads(raw) if raw else []
