@@ -34,22 +34,22 @@ def main() -> None:
 
     def solve(self, cand, goal, seed, miqp):
         t0 = time.perf_counter()
-        q0 = self.totals["qp_solves"]
+        q0 = self.tally.qp_solves
         out = orig_solve(self, cand, goal, seed, miqp)
         fixed = bool(np.allclose(goal, self.target))
-        pen = np.clip(self.pl.checks.penetration(seed).max(axis=1), 0, None)
+        pen = np.clip(self.vp.checks.penetration(seed).max(axis=1), 0, None)
         tx, ty, tth = self.target
         CALL["solves"].append(
             {
                 "phase": CALL["phase"],
                 "fixed": fixed,
                 "cand": [cand.direction, cand.switch],
-                "qp": self.totals["qp_solves"] - q0,
+                "qp": self.tally.qp_solves - q0,
                 "ms": 1e3 * (time.perf_counter() - t0),
                 "plan": out[1] is not None,
                 "j": out[0] if np.isfinite(out[0]) else None,
                 "cut": out[2],
-                "scout": miqp is not self.pl.miqp,
+                "scout": miqp is not self.vp.miqp,
                 "seed_pen_sum": float(pen.sum()),
                 "seed_pen_max": float(pen.max()),
                 "dist": float(np.hypot(self.xi0[0] - tx, self.xi0[1] - ty)),
@@ -63,18 +63,17 @@ def main() -> None:
         CALL["phase"] = "refine"
         return orig_refine(self, *args)
 
-    def plan(self, state, xi0, start, t0):
+    def plan(self, state, xi0, start, candidates=None):
         CALL.clear()
         CALL.update(solves=[], phase="scout")
         t = time.perf_counter()
-        res = orig_plan(self, state, xi0, start, t0)
-        st = self.core.last_stats
+        res = orig_plan(self, state, xi0, start, candidates)  # an Outcome
         RECORDS.append(
             {
                 "ms": 1e3 * (time.perf_counter() - t),
-                "qp": st.qp_solves,
-                "status": st.status,
-                "value": st.cost,
+                "qp": res.tally.qp_solves,
+                "status": res.status,
+                "value": res.cost,
                 "solves": CALL["solves"],
                 "case": CASE[0],
             }
