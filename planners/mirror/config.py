@@ -144,6 +144,10 @@ class AimedConfig(StrictModel):
     reach_speed: float = Field(1.2, gt=0, le=3)  # [m/s] a goal lies at most this far down V per second left
     finish_radius: float = Field(8.0, ge=0)  # [m] within this of the target, also plan toward it
     finish_candidates: int = Field(1, ge=0, le=10)  # ... with this many shape seeds, best by their merit
+    # [m] Best first: candidates solved in the order of their warm starts' price, the last
+    # one solved the first whose warm start costs more than the best plan found by over
+    # this (None: every candidate, in the order the warm starts were found).
+    margin: float | None = Field(None, ge=0)
 
 
 class ColdConfig(AimedConfig):

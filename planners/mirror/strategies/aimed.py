@@ -72,34 +72,67 @@ class AimedCandidates(Strategy):
         self, state: VehicleState, xi0: np.ndarray, start: Start, candidates: list[Candidate] | None = None
     ) -> Outcome:
         self.prepare()
-        cfg = self.cfg
         line = self.lines.from_heading(state.theta)
         prev = self.last_gear if abs(state.v) < 0.05 else (1 if state.v > 0 else -1)
         call = _Call(self, xi0, start, line, prev)
+        picked, fixed = self._candidates(state, xi0, line, call)
+        best, best_j, lead, lead_converged, goals, scouted = self._scout(picked, fixed, call)
+        if best is not None and lead not in fixed:
+            best, best_j = call.refine(best, best_j, goals[lead], lead_converged)
+        status = "ok" if best is not None else "infeasible"
+        if best is None and call.partial is not None:
+            best, status = call.partial, "partial"
+        if best is not None:
+            self.last_gear = last_gear(best.candidate)
+        stay = self.cost_to_go(xi0[:3], prev or None)  # the cost to go where the car is: the progress
+        cost = best_j if math.isfinite(best_j) else math.nan
+        detail = {"candidates": call.tried, "value": best_j, **scouted}
+        return Outcome(best, status, call.tally, cost, progress=stay, safety_net=call.net, detail=detail)
+
+    def _candidates(self, state: VehicleState, xi0: np.ndarray, line: MirrorLine, call: _Call):
+        """(candidate, seed) pairs of the call (``_warm_starts``, and near the target the best
+        shape seeds aimed at it) and the indices of those aimed at the target."""
         with self.clock("seeds"):
             picked, fixed = self._warm_starts(state, xi0, line, call), set()  # fixed: aimed at the target
             target = call.target
-            if math.hypot(xi0[0] - target[0], xi0[1] - target[1]) < cfg.finish_radius:
+            if math.hypot(xi0[0] - target[0], xi0[1] - target[1]) < self.cfg.finish_radius:
                 theta_t = unwrap_near(target[2], state.theta)
                 merit = lambda real: self.checks.merit(real, target, theta_t)  # noqa: E731
                 ranked = self.seeds.ranked(xi0, self.seeds.candidates(state, line), line, merit)
-                for cs in ranked[: cfg.finish_candidates]:
+                for cs in ranked[: self.cfg.finish_candidates]:
                     fixed.add(len(picked))
                     picked.append(cs)
+        return picked, fixed
+
+    def _scout(self, picked: list, fixed: set[int], call: _Call):
+        """(best plan, its J, its index, whether its SCP converged, the goals aimed, and for best
+        first the candidates in their order with their warm starts' prices) over ``picked``."""
+        cfg, target = self.cfg, call.target
         # Scouting: every candidate solved once, branch and bound on a small budget; then
         # the leader alone is refined (its goal moved down V from its optimised plan, its SCP
         # continued where it had not converged, on the full budget). Where no candidate gives
         # a plan, those whose branch and bound ran out of nodes are solved again on the full
-        # budget, within ``retry_nodes`` in all.
-        goals = [target.copy() if n in fixed else call.aim(seed, cand) for n, (cand, seed) in enumerate(picked)]
+        # budget, within ``retry_nodes`` in all. Best first (``margin``): the candidates in
+        # the order of their warm starts' price, the scouting ended at the first whose warm
+        # start costs more than the best optimised plan by over ``margin`` metres.
+        goals: dict[int, np.ndarray] = {}  # each candidate's goal, aimed when it is first solved
+        order, prices = list(range(len(picked))), None
+        if cfg.margin is not None:
+            with self.clock("seeds"):
+                prices = [self._seed_price(seed, cand, call) for cand, seed in picked]
+            order.sort(key=prices.__getitem__)
         best, best_j, lead, lead_converged = None, math.inf, -1, False
-        todo, retry_nodes = list(range(len(picked))), cfg.retry_nodes
+        todo, retry_nodes = order, cfg.retry_nodes
         for full in (False, True):
             cut_short = []
             for n in todo:
                 if self.budget.spent:
                     break  # the call's QP budget (``call_qp_budget``): the best plan so far stands
+                if not full and prices is not None and prices[n] - cfg.margin > best_j:
+                    break  # best first: the warm starts left all cost more than the best plan found
                 cand, seed = picked[n]
+                if n not in goals:
+                    goals[n] = target.copy() if n in fixed else call.aim(seed, cand)
                 if not full:
                     j, plan, cut, conv = call.solve(cand, goals[n], seed, self.scout_miqp)
                 elif retry_nodes > 0:
@@ -117,17 +150,14 @@ class AimedCandidates(Strategy):
             if best is not None:
                 break
             todo = cut_short
-        if best is not None and lead not in fixed:
-            best, best_j = call.refine(best, best_j, goals[lead], lead_converged)
-        status = "ok" if best is not None else "infeasible"
-        if best is None and call.partial is not None:
-            best, status = call.partial, "partial"
-        if best is not None:
-            self.last_gear = last_gear(best.candidate)
-        stay = self.cost_to_go(xi0[:3], prev or None)  # the cost to go where the car is: the progress
-        cost = best_j if math.isfinite(best_j) else math.nan
-        detail = {"candidates": call.tried, "value": best_j}
-        return Outcome(best, status, call.tally, cost, progress=stay, safety_net=call.net, detail=detail)
+        scouted = {} if prices is None else {"scouted": [picked[n][0] for n in order], "prices": sorted(float(p) for p in prices)}
+        return best, best_j, lead, lead_converged, goals, scouted
+
+    def _seed_price(self, seed: np.ndarray, cand: Candidate, call: _Call) -> float:
+        """What a candidate's warm start costs by the price its optimised plan is compared
+        by (``_Call.score``), plus the price of its footprint's penetration."""
+        real = seed[:: self.cc.model_substeps] if len(seed) > self.cc.horizon + 1 else seed
+        return call.score(real, cand) + penetration_price(self.price, self.checks.penetration(seed).max(axis=1))
 
     def _seed_merit(self, real: np.ndarray) -> float:
         """J of a seed rollout, plus the price of its footprint's penetration."""
