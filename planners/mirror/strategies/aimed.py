@@ -150,7 +150,9 @@ class AimedCandidates(Strategy):
             if best is not None:
                 break
             todo = cut_short
-        scouted = {} if prices is None else {"scouted": [picked[n][0] for n in order], "prices": sorted(float(p) for p in prices)}
+        scouted = {}
+        if prices is not None:
+            scouted = {"scouted": [picked[n][0] for n in order], "prices": sorted(float(p) for p in prices)}
         return best, best_j, lead, lead_converged, goals, scouted
 
     def _seed_price(self, seed: np.ndarray, cand: Candidate, call: _Call) -> float:
