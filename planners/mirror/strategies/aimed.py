@@ -157,12 +157,14 @@ class AimedCandidates(Strategy):
 
     def _seed_price(self, seed: np.ndarray, cand: Candidate, call: _Call) -> float:
         """What a candidate's warm start costs by the price its optimised plan is compared
-        by (``_Call.score``), plus the price of its footprint's penetration."""
+        by (``_Call.score``: the candidate's switch, V in its last gear), plus the price of
+        its footprint's penetration: best first's order."""
         real = seed[:: self.cc.model_substeps] if len(seed) > self.cc.horizon + 1 else seed
         return call.score(real, cand) + penetration_price(self.price, self.checks.penetration(seed).max(axis=1))
 
     def _seed_merit(self, real: np.ndarray) -> float:
-        """J of a seed rollout, plus the price of its footprint's penetration."""
+        """J of a seed rollout as driven (its own gear changes, V at rest), plus the price of
+        its footprint's penetration: which of two seeds of one candidate to keep."""
         gears = np.sign(real[np.abs(real[:, 3]) > 0.05, 3])
         switches = int(np.count_nonzero(gears[1:] != gears[:-1]))
         pen = self.checks.penetration(real).max(axis=1)
