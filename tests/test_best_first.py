@@ -31,7 +31,7 @@ def _call(case_id: str, **changes):
 @pytest.mark.parametrize("case_id", CASES)
 def test_a_margin_no_price_reaches_gives_the_exhaustive_plan(case_id):
     """Every candidate is solved either way, only in another order: the same plan wins."""
-    every, st_every = _call(case_id)
+    every, st_every = _call(case_id, margin=None)
     first, st_first = _call(case_id, margin=1e9)
     assert every is not None and first is not None
     assert len(st_first.detail["candidates"]) == len(st_every.detail["candidates"])
@@ -41,10 +41,16 @@ def test_a_margin_no_price_reaches_gives_the_exhaustive_plan(case_id):
 
 @pytest.mark.parametrize("case_id", CASES)
 def test_margin_zero_solves_no_more_and_starts_with_the_cheapest_warm_start(case_id):
-    every, st_every = _call(case_id)
+    every, st_every = _call(case_id, margin=None)
     first, st_first = _call(case_id, margin=0.0)
     assert first is not None
     tried, prices = st_first.detail["candidates"], st_first.detail["prices"]
     assert len(tried) <= len(st_every.detail["candidates"])
     assert tried[0][0] == st_first.detail["scouted"][0] and prices[0] == min(prices)
     assert st_first.qp_solves <= st_every.qp_solves
+
+
+def test_the_exhaustive_preset_is_mirror_solving_every_candidate():
+    assert preset_config("mirror").strategy.margin == 5.0
+    assert preset_config("mirror-exhaustive").strategy.margin is None
+    assert preset_config("mirror-exhaustive").model_dump() == preset_config("mirror", margin=None).model_dump()

@@ -68,6 +68,9 @@ _GUIDED_CORE = {
 
 PRESETS: dict[str, Preset] = {
     "mirror": Preset(AimedCandidates, AimedConfig(), doc="the default: candidates aimed and compared by a cost to go"),
+    "mirror-exhaustive": Preset(
+        AimedCandidates, AimedConfig(margin=None), doc="mirror solving every candidate: what best first costs"
+    ),
     "mirror-cold": Preset(
         ColdStart, ColdConfig(), doc="mirror without any path as a warm start (shape seeds): what the warm start adds"
     ),
