@@ -281,7 +281,7 @@ def test_mirror_plans_end_settled_so_no_stop_rolls_back_across_zero(monkeypatch)
         # no seed along the way V prices at the car, which came later)
         monkeypatch.setattr(CostToGo, "read_path", lambda *args, **kwargs: None)
         cfg = preset_config(
-            "mirror",
+            "mirror-exhaustive",  # every candidate, as when it was measured
             end_settled=settled,
             time_limit_s=600.0,
             scout_node_limit=10,

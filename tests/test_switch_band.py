@@ -87,11 +87,12 @@ class _Recording(MirrorPolicy):
 # Likewise reverse_rw7.00_sl4.82_sw3.07_th+0_y5.20 was the default's second until
 # 2026-12-04: seeded also by the way V prices at the car, it now switches where one plan
 # ends and the next begins, and reverse_rw7.00_sl4.82_sw2.72_th+0_y5.50 its second until the
-# warm starts' joins and goals were mended (the twenty-seventh session), for the same reason.
+# warm starts' joins and goals were mended (the twenty-seventh session), for the same reason;
+# and reverse_rw7.00_sl4.82_sw2.72_th+0_y5.40 until best first became the default.
 SWITCHING = {
     "mirror": (
         "parallel_rw3.50_sl6.82_sw2.50_th+0_y1.50",
-        "reverse_rw7.00_sl4.82_sw2.72_th+0_y5.40",
+        "reverse_rw7.00_sl4.82_sw2.82_th+0_y5.40",
         "reverse_rw6.00_sl4.82_sw2.07_th-20_y4.90",
         "angle_rw4.50_sl4.82_sw1.92_th+10_y1.80",
         "angle_rw4.00_sl4.82_sw3.07_th-10_y2.40",
