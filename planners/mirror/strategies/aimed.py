@@ -56,6 +56,7 @@ class AimedCandidates(Strategy):
         self.scout_miqp = BranchAndBound(core.qp_solver, config.scout_node_limit, cc.time_limit_s)
         self.tracked_seed = TrackedSeed(self.g, cc, core.rollouts.truth)
         self.last_gear = 0  # the gear the last plan ended in (0: none yet), for the switch price
+        self.best_stay = math.inf  # the lowest cost to go at the car of the episode's calls so far
 
     def prepare(self) -> None:
         """The slot's cost to go, shared by episodes in the same slot (``cost_to_go.cost_to_go``)."""
@@ -75,8 +76,13 @@ class AimedCandidates(Strategy):
         line = self.lines.from_heading(state.theta)
         prev = self.last_gear if abs(state.v) < 0.05 else (1 if state.v > 0 else -1)
         call = _Call(self, xi0, start, line, prev)
+        stay = self.cost_to_go(xi0[:3], prev or None)  # the cost to go where the car is: the progress
+        # Where the calls since the best one have not brought the car 1 % nearer (a tight slot
+        # shuffled into), the cheap order has not moved it on: every candidate is solved.
+        stalled = stay >= 0.99 * self.best_stay
+        self.best_stay = min(self.best_stay, stay)
         picked, fixed = self._candidates(state, xi0, line, call)
-        best, best_j, lead, lead_converged, goals, scouted = self._scout(picked, fixed, call)
+        best, best_j, lead, lead_converged, goals, scouted = self._scout(picked, fixed, call, stalled)
         if best is not None and lead not in fixed:
             best, best_j = call.refine(best, best_j, goals[lead], lead_converged)
         status = "ok" if best is not None else "infeasible"
@@ -84,7 +90,6 @@ class AimedCandidates(Strategy):
             best, status = call.partial, "partial"
         if best is not None:
             self.last_gear = last_gear(best.candidate)
-        stay = self.cost_to_go(xi0[:3], prev or None)  # the cost to go where the car is: the progress
         cost = best_j if math.isfinite(best_j) else math.nan
         detail = {"candidates": call.tried, "value": best_j, **scouted}
         return Outcome(best, status, call.tally, cost, progress=stay, safety_net=call.net, detail=detail)
@@ -104,9 +109,10 @@ class AimedCandidates(Strategy):
                     picked.append(cs)
         return picked, fixed
 
-    def _scout(self, picked: list, fixed: set[int], call: _Call):
+    def _scout(self, picked: list, fixed: set[int], call: _Call, every: bool = False):
         """(best plan, its J, its index, whether its SCP converged, the goals aimed, and for best
-        first the candidates in their order with their warm starts' prices) over ``picked``."""
+        first the candidates in their order with their warm starts' prices) over ``picked``;
+        ``every``: solve every candidate (best first's order, no margin)."""
         cfg, target = self.cfg, call.target
         # Scouting: every candidate solved once, branch and bound on a small budget; then
         # the leader alone is refined (its goal moved down V from its optimised plan, its SCP
@@ -128,7 +134,7 @@ class AimedCandidates(Strategy):
             for n in todo:
                 if self.budget.spent:
                     break  # the call's QP budget (``call_qp_budget``): the best plan so far stands
-                if not full and prices is not None and prices[n] - cfg.margin > best_j:
+                if not full and prices is not None and not every and prices[n] - cfg.margin > best_j:
                     break  # best first: the warm starts left all cost more than the best plan found
                 cand, seed = picked[n]
                 if n not in goals:
