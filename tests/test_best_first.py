@@ -51,6 +51,6 @@ def test_margin_zero_solves_no_more_and_starts_with_the_cheapest_warm_start(case
 
 
 def test_the_exhaustive_preset_is_mirror_solving_every_candidate():
-    assert preset_config("mirror").strategy.margin == 5.0
+    assert preset_config("mirror").strategy.margin == 10.0
     assert preset_config("mirror-exhaustive").strategy.margin is None
     assert preset_config("mirror-exhaustive").model_dump() == preset_config("mirror", margin=None).model_dump()

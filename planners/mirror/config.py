@@ -146,9 +146,9 @@ class AimedConfig(StrictModel):
     finish_candidates: int = Field(1, ge=0, le=10)  # ... with this many shape seeds, best by their merit
     # [m] Best first: candidates solved in the order of their warm starts' price, the last
     # one solved the first whose warm start costs more than the best plan found by over
-    # this (None: every candidate, in the order the warm starts were found). 5 m, a
-    # switch's price: 0 and 2 m cost more switches and parking time (docs/mirror_planner.md).
-    margin: float | None = Field(5.0, ge=0)
+    # this (None: every candidate, in the order the warm starts were found). 10 m, two
+    # switches' price: 5 m costs more switches and parking time (docs/mirror_planner.md).
+    margin: float | None = Field(10.0, ge=0)
 
 
 class ColdConfig(AimedConfig):
