@@ -290,8 +290,8 @@ def test_case_files(tmp_path):
 def test_unknown_planner_is_named(tmp_path):
     with pytest.raises(
         ValueError,
-        match=r"planner: unknown .astar.; available: mirror, mirror-cold, mirror-paper, mirror-guided, "
-        r"mirror-multistart, guide-only, hybrid-astar",
+        match=r"planner: unknown .astar.; available: mirror, mirror-exhaustive, mirror-cold, mirror-paper, "
+        r"mirror-guided, mirror-multistart, guide-only, hybrid-astar",
     ):
         evaluate("astar", _scenarios(A), tmp_path, progress=False)
     with pytest.raises(ValueError, match=r"planner: 'mirror-value' is now mirror \(renamed on 2026-12-02"):
