@@ -123,34 +123,40 @@ class TruthModel:
         self.dt = dt
         self.n = n
         self.h = h = dt / n
-        ks = range(n)
-        self._ea_start = [math.exp(-k * h / params.tau_accel_s) for k in ks]
-        self._ea_end = [math.exp(-(k + 1) * h / params.tau_accel_s) for k in ks]
-        self._ed_mid = [math.exp(-(k + 0.5) * h / params.tau_steer_s) for k in ks]
-        self._ed_end = [math.exp(-(k + 1) * h / params.tau_steer_s) for k in ks]
-        self._dv_lag = params.tau_accel_s * (1.0 - math.exp(-h / params.tau_accel_s))
-        self._lags, self._consts = self.lag_factors(), self.step_constants()  # for the compiled step
+        ta, td = params.tau_accel_s, params.tau_steer_s
+        # Per sub-step: the acceleration lag's decay at its start and end, the steering lag's
+        # at its middle and end (exact lags: they relax exponentially toward the commands).
+        self._lags = np.array(
+            [
+                [
+                    math.exp(-k * h / ta),
+                    math.exp(-(k + 1) * h / ta),
+                    math.exp(-(k + 0.5) * h / td),
+                    math.exp(-(k + 1) * h / td),
+                ]
+                for k in range(n)
+            ]
+        )
+        self._consts = (
+            float(h),
+            1.0 / params.wheelbase,
+            float(params.speed_min),
+            float(params.speed_max),
+            float(ta * (1.0 - math.exp(-h / ta))),  # the speed gained from the acceleration's lag
+            float(params.accel_min),
+            float(params.accel_max),
+            float(params.max_steer_rad),
+            float(ta),
+        )
 
     def lag_factors(self) -> np.ndarray:
-        """(n, 4) per sub-step: the acceleration lag's decay at its start and end, the steering
-        lag's at its middle and end (``truth_kernel.truth_step``'s ``lags``)."""
-        return np.array([self._ea_start, self._ea_end, self._ed_mid, self._ed_end], dtype=float).T.copy()
+        """(n, 4): ``truth_kernel.truth_step``'s ``lags`` (a copy)."""
+        return self._lags.copy()
 
     def step_constants(self) -> tuple[float, ...]:
         """(h, 1 / wheelbase, v_min, v_max, dv_lag, a_min, a_max, max_steer, tau_a): the scalars
         ``truth_kernel.truth_step`` and the brake's hold law use."""
-        p = self.params
-        return (
-            float(self.h),
-            1.0 / p.wheelbase,
-            float(p.speed_min),
-            float(p.speed_max),
-            float(self._dv_lag),
-            float(p.accel_min),
-            float(p.accel_max),
-            float(p.max_steer_rad),
-            float(p.tau_accel_s),
-        )
+        return self._consts
 
     def step(self, state, a_cmd: float, delta_cmd: float) -> np.ndarray:
         """States at the end of each sub-step, (n, 7); commands are clipped to bounds.
