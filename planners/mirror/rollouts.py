@@ -20,8 +20,7 @@ class Rollouts:
 
     def half(self, xi0: np.ndarray, u_planned: np.ndarray, cand: Candidate) -> np.ndarray:
         """Real states at every half step: (substeps N + 1, 6); every ``substeps``-th row is a control step."""
-        sub = self.truth.rollout(xi0, real_commands(u_planned, cand))[:, :6]
-        return np.concatenate([xi0[None], sub])
+        return self.commands(xi0, real_commands(u_planned, cand))
 
     def steps(self, xi0: np.ndarray, u_planned: np.ndarray, cand: Candidate) -> np.ndarray:
         """Real states at the control steps when executing planned commands (Eq. 42 after the switch)."""
