@@ -26,12 +26,12 @@ def check_policy(policy: Policy, case_id: str = CASE, steps: int = 30) -> list[s
     problems: list[str] = []
     try:
         policy.reset(info["geometry"])
-    except Exception as err:  # noqa: BLE001 - reported, not raised
+    except (Exception, SystemExit) as err:  # noqa: BLE001 - reported, not raised (sys.exit too)
         return [f"reset(geometry) raised {type(err).__name__}: {err}"]
     for k in range(steps):
         try:
             action = policy.act(obs, info)
-        except Exception as err:  # noqa: BLE001
+        except (Exception, SystemExit) as err:  # noqa: BLE001
             problems.append(f"act(obs, info) at step {k} raised {type(err).__name__}: {err}")
             break
         bad = _action_problem(action)

@@ -15,6 +15,7 @@ from mirrorpark_env.grid import Grid
 
 from . import registry
 from .bench import run
+from .call_limit import CALL_LIMIT_S
 from .cases import cases_from, chunk, from_sample, layouts_from
 from .check_policy import check_policy
 from .cli_compare import add_compare
@@ -29,7 +30,7 @@ from .metrics import summary
 from .mirror_demo import mirror_demo
 from .registry import MAIN, make_policy
 from .report import write_report
-from .runner import evaluate
+from .runner import WorkerDied, evaluate
 from .store import export_table, read_results
 
 
@@ -92,6 +93,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         mixed_code=args.mixed_code,
         trajectories=args.trajectories,
+        call_limit_s=args.call_limit,
     )
     df = read_results([out])
     ids = {sc.case_id for sc in scenarios}
@@ -159,7 +161,15 @@ def cmd_main(args: argparse.Namespace) -> int:
     out = Path(args.out)
     planners = list(MAIN) if args.planners is None else args.planners
     for p in planners:
-        evaluate(p, scenarios, out / p, workers=args.workers, progress=not args.quiet, mixed_code=args.mixed_code)
+        evaluate(
+            p,
+            scenarios,
+            out / p,
+            workers=args.workers,
+            progress=not args.quiet,
+            mixed_code=args.mixed_code,
+            call_limit_s=args.call_limit,
+        )
     df = read_results([out / p for p in planners])
     path = write_report(df, out / "report")
     print(f"wrote {path}")
@@ -213,6 +223,27 @@ def _positive_int(text: str) -> int:
     if n < 1:
         raise argparse.ArgumentTypeError(f"must be >= 1, got {n}")
     return n
+
+
+def _seconds(text: str) -> float:
+    try:
+        s = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds >= 0, got {text!r}") from None
+    if not s >= 0 or s == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected finite seconds >= 0, got {text!r}")
+    return s
+
+
+def call_limit_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--call-limit",
+        type=_seconds,
+        default=CALL_LIMIT_S,
+        metavar="SECONDS",
+        help=f"wall-clock safety net per planner call (default {CALL_LIMIT_S:g}; 0: none): a call past it "
+        "ends its case as an error row; budgets in work stay the planners' real limit",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -297,6 +328,7 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="keep each episode's states and commands (for `mirrorpark export --trajectories`; layouts always)",
     )
+    call_limit_arg(e)
     e.add_argument("--backend", default="local", choices=["local", "ray"])
     e.add_argument("--address", default=None, help="Ray cluster address (default: start a local Ray)")
     e.add_argument("--out", default=None, help="results folder (default: results/<planner>-<sample>)")
@@ -333,6 +365,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     case_args(m)
     m.add_argument("--planners", nargs="+", default=None)
+    call_limit_arg(m)
     m.add_argument("--out", default="results/main")
     m.set_defaults(func=cmd_main)
 
@@ -401,6 +434,9 @@ def main(argv: list[str] | None = None) -> int:
         where = f"{err.filename}: " if err.filename else ""
         print(f"mirrorpark: error: {where}{err.strerror or err}", file=sys.stderr)
         return 2
+    except WorkerDied as err:  # a worker killed or crashed: which case, what is stored
+        print(f"mirrorpark: error: {err}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt as err:  # Ctrl-C or SIGTERM: what is stored, and how to resume
         what = "terminated" if terminated[0] else "interrupted"
         print(f"mirrorpark: {what}{': ' + str(err) if str(err) else ''}", file=sys.stderr)

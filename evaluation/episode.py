@@ -8,8 +8,10 @@ commands of every step (``path_*``, for ``mirrorpark export --trajectories``).
 from __future__ import annotations
 
 import math
+import sys
 import time
 import traceback
+from contextlib import redirect_stdout
 from typing import Any
 
 import gymnasium as gym
@@ -23,9 +25,10 @@ from mirrorpark_env.vehicle import VehicleParams, from_action, vehicle_name
 from planners.base import run_episode
 
 from . import registry
+from .call_limit import CALL_LIMIT_S, CallTimeout, limited
 from .causes import episode_cause
 from .provenance import current_id
-from .schema import MARGINS
+from .schema import MARGINS, wrong_types
 
 _ENV = None  # one environment per worker process
 
@@ -104,9 +107,16 @@ def trajectory_fields(trace: list[dict], actions: list, params: VehicleParams) -
 
 
 def run_case(
-    planner: str, sc: Scenario | Layout, keep_stats: list | None = None, trajectory: bool = False
+    planner: str,
+    sc: Scenario | Layout,
+    keep_stats: list | None = None,
+    trajectory: bool = False,
+    call_limit_s: float | None = CALL_LIMIT_S,
 ) -> dict[str, Any]:
-    """One episode of ``planner`` on a grid case or a layout; never raises (errors become rows).
+    """One episode of ``planner`` on a grid case or a layout; never raises (errors become rows:
+    an exception, a plug-in's ``sys.exit``, a call past ``call_limit_s`` seconds, the safety
+    net of ``call_limit.py``; None: none). What the planner prints goes to stderr: stdout is
+    the command's own (``evaluate --json``).
 
     With ``trajectory`` (always for a layout) the row also holds the driven trajectory
     (``trajectory_fields``, in the layout's frame) for figures and ``mirrorpark export
@@ -120,11 +130,13 @@ def run_case(
         is_layout = isinstance(sc, Layout)
         row.update(layout_fields(sc) if is_layout else case_fields(sc))
         policy = registry.make_policy(planner)  # looked up at call time: tests stand one in
+        watched = limited(policy, call_limit_s)
         keep = trajectory or is_layout
         trace: list[dict] | None = [] if keep else None
         actions: list | None = [] if keep else None
         env = worker_env()
-        info, steps = run_episode(env, policy, sc, trace=trace, actions=actions)
+        with redirect_stdout(sys.stderr):
+            info, steps = run_episode(env, watched, sc, trace=trace, actions=actions)
         if keep:
             row.update(trajectory_fields(trace, actions, env.unwrapped.params))
             if is_layout:
@@ -152,7 +164,7 @@ def run_case(
             plan_nodes=[int(s.nodes) for s in policy.stats],
             safety_net_calls=sum(bool(s.detail.get("safety_net")) for s in policy.stats),
             setup_ms=1e3 * float(getattr(policy, "setup_time_s", 0.0)),
-            planner_status=policy.status,
+            planner_status=_text(policy.status),
             error=None,
             inside_slot=bool(info["inside_slot"]),
             min_clearance_m=float(info["min_clearance"]),
@@ -162,7 +174,7 @@ def run_case(
         )
         for m in MARGINS:
             row[m] = float(info["margins"].get(m, math.nan))
-    except Exception as err:  # noqa: BLE001  (any failure of one case must not stop the run)
+    except (Exception, SystemExit, CallTimeout) as err:  # noqa: BLE001  (one case's failure must not stop the run)
         row.update(
             success=False,
             failed_criterion="error",
@@ -170,6 +182,10 @@ def run_case(
             error=f"{type(err).__name__}: {err}",
             traceback=traceback.format_exc(limit=5),
         )
+    bad = wrong_types(row)
+    if bad:  # a plug-in's value of the wrong type: the episode is kept, the value dropped and named
+        named = ", ".join(f"{k} ({type(row[k]).__name__})" for k in bad)
+        row.update(dict.fromkeys(bad, None), error=f"the planner gave values of the wrong type: {named}")
     feasible = _feasible(sc)
     row["feasible"] = feasible
     ended = None if row.get("planner_status") == "error" else info
@@ -177,3 +193,8 @@ def run_case(
     row["episode_wall_s"] = time.perf_counter() - t0
     row["environment"] = current_id()  # the machine and packages (``environment.jsonl``)
     return row
+
+
+def _text(status: Any) -> str:
+    """A policy's status as stored: a plug-in's non-string status as its text."""
+    return status if isinstance(status, str) else str(status)

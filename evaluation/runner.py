@@ -10,10 +10,11 @@ import ctypes
 import dataclasses
 import multiprocessing as mp
 import os
-import queue
+import pickle
 import signal
 import sys
 from collections.abc import Callable, Hashable, Iterable
+from multiprocessing.connection import wait
 from pathlib import Path
 from typing import Any
 
@@ -23,12 +24,13 @@ from mirrorpark_env.layout import Layout
 from mirrorpark_env.scenario import Scenario
 
 from . import registry
+from .call_limit import CALL_LIMIT_S
 from .episode import run_case, worker_env
 from .provenance import check_resume
 from .registry import make_policy
 from .store import ResultStore, locked
 
-__all__ = ["evaluate", "run_case", "run_parallel", "slot_of", "unique", "worker_env"]
+__all__ = ["WorkerDied", "evaluate", "run_case", "run_parallel", "slot_of", "unique", "worker_env"]
 
 
 def unique(scenarios: Iterable[Scenario]) -> tuple[list[Scenario], int]:
@@ -54,9 +56,9 @@ def unique(scenarios: Iterable[Scenario]) -> tuple[list[Scenario], int]:
     return out, n_in - len(out)
 
 
-def _run_case_tuple(args: tuple[str, Scenario, bool]) -> dict[str, Any]:
-    planner, sc, trajectory = args
-    return run_case(planner, sc, trajectory=trajectory)
+def _run_case_tuple(args: tuple[str, Scenario, bool, float | None]) -> dict[str, Any]:
+    planner, sc, trajectory, call_limit_s = args
+    return run_case(planner, sc, trajectory=trajectory, call_limit_s=call_limit_s)
 
 
 def evaluate(
@@ -69,11 +71,13 @@ def evaluate(
     progress: bool = True,
     mixed_code: bool = False,
     trajectories: bool = False,
+    call_limit_s: float | None = CALL_LIMIT_S,
 ) -> ResultStore:
     """Run ``planner`` over ``scenarios`` into the store at ``out``; resume where it stopped,
     if its rows of ``planner`` came from this code (``provenance.check_resume``; ``mixed_code``:
     whatever code they came from). ``trajectories``: rows keep the driven trajectory (layout
-    rows always do)."""
+    rows always do). ``call_limit_s``: the wall-clock safety net per planner call
+    (``call_limit.py``; None or 0: none); a call past it ends its case as an error row."""
 
     make_policy(planner)  # an unknown planner fails now, not in every worker
     if backend not in ("local", "ray"):
@@ -81,9 +85,13 @@ def evaluate(
     workers = (os.cpu_count() or 1) if workers is None else workers
     if workers < 1:
         raise ValueError(f"workers: must be >= 1, got {workers}")
+    if call_limit_s is not None and not call_limit_s >= 0:
+        raise ValueError(f"call_limit_s: seconds >= 0 (0: none), got {call_limit_s}")
     store = ResultStore(out)
     with locked(store.folder):  # one run per results folder at a time
-        _run_into(store, planner, scenarios, workers, backend, ray_address, progress, mixed_code, trajectories)
+        _run_into(
+            store, planner, scenarios, workers, backend, ray_address, progress, mixed_code, trajectories, call_limit_s
+        )
     return store
 
 
@@ -97,6 +105,7 @@ def _run_into(
     progress: bool,
     mixed_code: bool,
     trajectories: bool = False,
+    call_limit_s: float | None = CALL_LIMIT_S,
 ) -> None:
     """``evaluate``'s run, the folder locked: the cases not yet stored, their rows appended."""
 
@@ -116,20 +125,28 @@ def _run_into(
 
     try:
         if backend == "ray":
-            _run_ray(planner, todo, keep, ray_address, workers, trajectories)
+            _run_ray(planner, todo, keep, ray_address, workers, trajectories, call_limit_s)
         elif min(workers, len(todo)) <= 1:  # no processes to start for one case
             for sc in todo:
-                keep(run_case(planner, sc, trajectory=trajectories))
+                keep(run_case(planner, sc, trajectory=trajectories, call_limit_s=call_limit_s))
         else:
-            items = [(planner, sc, trajectories) for sc in todo]
-            run_parallel(_run_case_tuple, items, keep, workers, group=lambda it: slot_of(it[1]))
-    except KeyboardInterrupt:
+            items = [(planner, sc, trajectories, call_limit_s) for sc in todo]
+            run_parallel(
+                _run_case_tuple,
+                items,
+                keep,
+                workers,
+                group=lambda it: slot_of(it[1]),
+                describe=lambda it: it[1].case_id,
+            )
+    except (KeyboardInterrupt, WorkerDied) as err:
         bar.close()
         store.compact()
         left = len(todo) - stored
-        raise KeyboardInterrupt(
-            f"{len(store.done())} cases stored in {store.folder}, {left} not run; rerun the same command to resume"
-        ) from None
+        where = f"{len(store.done())} cases stored in {store.folder}, {left} not run; rerun the same command to resume"
+        if isinstance(err, WorkerDied):
+            raise WorkerDied(f"{err}; {where}") from None
+        raise KeyboardInterrupt(where) from None
     finally:
         bar.close()
     store.compact()
@@ -147,6 +164,10 @@ def _worker_signals() -> None:
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
 
 
+class WorkerDied(RuntimeError):
+    """A worker process ended while it ran an item (killed, out of memory, ``os._exit``)."""
+
+
 def run_parallel(
     fn: Callable[[Any], Any],
     items: list,
@@ -154,6 +175,7 @@ def run_parallel(
     workers: int,
     group: Callable[[Any], Hashable] | None = None,
     batch: int = 8,
+    describe: Callable[[Any], str] = repr,
 ) -> None:
     """``keep(fn(item))`` for every item, in ``workers`` processes, as each finishes.
 
@@ -164,28 +186,152 @@ def run_parallel(
     run, not once in every worker that meets the slot. Results do not change, only the
     work. Each item's result comes back as soon as it is done, not with its run: an
     interruption loses only the items in progress.
+
+    A worker that dies while it runs an item stops the run within about a second with
+    ``WorkerDied``, naming the item (``describe(item)``); an item whose ``fn`` raises stops
+    it with that exception (one that is not an ``Exception``, such as ``SystemExit``, as a
+    ``RuntimeError`` saying so). Either way every worker is stopped before this returns.
     """
-    runs = batches(items, group, batch)
+    runs = [
+        list(run) for run in batches(list(enumerate(items)), None if group is None else lambda it: group(it[1]), batch)
+    ]
     if not runs:
         return
     ctx, extra = _pool_context()
-    results = ctx.Queue()
-    n_proc = min(workers, len(runs))
-    with ctx.Pool(n_proc, initializer=_init_worker, initargs=(extra, results), maxtasksperchild=200) as pool:
-        pending = pool.map_async(_run_batch, [(fn, run) for run in runs], chunksize=1)
-        left = len(items)
+    todo = list(reversed(runs))  # popped from the end: in order
+    pool: list[_Worker] = []
+    left = len(items)
+    try:
+        for _ in range(min(workers, len(runs))):
+            pool.append(_Worker.start(ctx, fn, extra))
+            pool[-1].give(todo.pop())
         while left:
-            try:
-                ok, out = results.get(timeout=1.0 if not pending.ready() else 30.0)
-            except queue.Empty:
-                if not pending.ready():
+            ready = wait([w.conn for w in pool] + [w.proc.sentinel for w in pool], timeout=1.0)
+            for w in list(pool):
+                if w.conn not in ready and w.proc.sentinel not in ready:
                     continue
-                pending.get()  # a run that failed outside ``fn`` raises here
-                raise RuntimeError(f"run_parallel: {left} of {len(items)} items gave no result") from None
-            if not ok:
-                raise out
-            keep(out)
-            left -= 1
+                for msg in w.messages():
+                    kind = msg[0]
+                    if kind == "done":
+                        keep(msg[2])
+                        left -= 1
+                    elif kind == "error":
+                        raise msg[2]
+                    elif kind == "idle":
+                        w.runs_done += 1
+                        w.run = None
+                        if w.runs_done >= _RUNS_PER_WORKER and todo:  # a fresh process now and then
+                            w.stop()
+                            pool[pool.index(w)] = w = _Worker.start(ctx, fn, extra)
+                        if todo:
+                            w.give(todo.pop())
+                if not w.proc.is_alive() and w.run is not None:
+                    w.proc.join(1.0)
+                    item = items[w.current] if w.current is not None else None
+                    what = describe(item) if item is not None else "a run of items"
+                    raise WorkerDied(
+                        f"a worker process (PID {w.proc.pid}) died ({_exit_name(w.proc.exitcode)}) while running {what}"
+                    )
+    finally:
+        for w in pool:
+            w.stop()
+
+
+_RUNS_PER_WORKER = 200  # a worker is replaced after this many runs (what a long run leaks, it frees)
+
+
+class _Worker:
+    """One worker process, its end of a pipe, the run it was given and the item in hand."""
+
+    def __init__(self, proc, conn) -> None:
+        self.proc, self.conn = proc, conn
+        self.run: list | None = None
+        self.current: int | None = None
+        self.runs_done = 0
+
+    @classmethod
+    def start(cls, ctx, fn, extra) -> _Worker:
+        mine, theirs = ctx.Pipe()
+        proc = ctx.Process(target=_worker_main, args=(theirs, fn, extra), daemon=True)
+        proc.start()
+        theirs.close()
+        return cls(proc, mine)
+
+    def give(self, run: list) -> None:
+        self.run = run
+        self.conn.send(run)
+
+    def messages(self) -> list[tuple]:
+        """What the worker has sent so far (all of it, once it has ended)."""
+        out = []
+        try:
+            while self.conn.poll():
+                msg = self.conn.recv()
+                if msg[0] == "start":
+                    self.current = msg[1]
+                else:
+                    if msg[0] == "done":
+                        self.current = None
+                    out.append(msg)
+        except (EOFError, OSError):  # the worker is gone; its sentinel says so
+            pass
+        return out
+
+    def stop(self) -> None:
+        if self.proc.is_alive():
+            try:
+                self.conn.send(None)
+            except OSError:
+                pass
+            self.proc.join(0.2)
+        if self.proc.is_alive():
+            self.proc.terminate()  # SIGTERM: a worker dies at once (``_worker_signals``)
+            self.proc.join(2.0)
+        if self.proc.is_alive():
+            self.proc.kill()
+            self.proc.join(2.0)
+        self.conn.close()
+
+
+def _exit_name(code: int | None) -> str:
+    if code is not None and code < 0:
+        try:
+            return signal.Signals(-code).name
+        except ValueError:
+            return f"signal {-code}"
+    return f"exit code {code}"
+
+
+def _worker_main(conn, fn, extra: dict) -> None:
+    """A worker: runs of (index, item) in, ``start``/``done`` per item and ``idle`` per run out."""
+    _init_worker(extra)
+    while True:
+        try:
+            run = conn.recv()
+        except EOFError:
+            return
+        if run is None:
+            return
+        for idx, item in run:
+            conn.send(("start", idx))
+            try:
+                out = fn(item)
+            except BaseException as err:  # noqa: BLE001 - sent to the parent, which stops the run
+                conn.send(("error", idx, _sendable(err)))
+                return
+            conn.send(("done", idx, out))
+        conn.send(("idle",))
+
+
+def _sendable(err: BaseException) -> Exception:
+    """``err`` as the parent can raise it: itself where it pickles and is an ``Exception``."""
+    if isinstance(err, Exception):
+        try:
+            pickle.loads(pickle.dumps(err))
+            return err
+        except Exception:  # noqa: BLE001
+            pass
+    return RuntimeError(f"{type(err).__name__}: {err}")
 
 
 def batches(items: list, group: Callable[[Any], Hashable] | None = None, batch: int = 8) -> list[list]:
@@ -204,18 +350,6 @@ def batches(items: list, group: Callable[[Any], Hashable] | None = None, batch: 
         runs[-1].append(item)
         last = key
     return runs
-
-
-def _run_batch(task: tuple) -> None:
-    """Run items one after another in this worker, each result sent on as it is done."""
-    fn, items = task
-    for item in items:
-        try:
-            out = fn(item)
-        except Exception as err:
-            _RESULTS.put((False, err))
-            raise
-        _RESULTS.put((True, out))
 
 
 def slot_of(case: Scenario | Layout) -> tuple:
@@ -256,21 +390,21 @@ def _native_threads() -> int:
         return threading.active_count()
 
 
-_RESULTS = None  # a worker's queue to the parent (``run_parallel``)
-
-
-def _init_worker(extra: dict, results=None) -> None:
-    """Workers leave Ctrl-C to the parent, know the planners registered at run time, and
-    send their results on ``results``."""
-    global _RESULTS
+def _init_worker(extra: dict) -> None:
+    """Workers leave Ctrl-C to the parent and know the planners registered at run time."""
 
     _worker_signals()
     registry.PLANNERS.update(extra)
-    _RESULTS = results
 
 
 def _run_ray(
-    planner: str, todo: list[Scenario], keep, address: str | None, workers: int, trajectories: bool = False
+    planner: str,
+    todo: list[Scenario],
+    keep,
+    address: str | None,
+    workers: int,
+    trajectories: bool = False,
+    call_limit_s: float | None = CALL_LIMIT_S,
 ) -> None:
     try:
         import ray
@@ -281,18 +415,25 @@ def _run_ray(
             ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
         else:
             ray.init(num_cpus=workers, ignore_reinit_error=True, log_to_driver=False, include_dashboard=False)
-    task = ray.remote(num_cpus=1)(run_case)
+    task = ray.remote(num_cpus=1, max_retries=0)(run_case)  # a crashed worker is reported, not retried
     limit = 4 * max(1, int(ray.available_resources().get("CPU", workers)))
-    pending = []
+    pending: dict = {}  # task -> its case
 
     def collect() -> None:
-        nonlocal pending
-        ready, pending = ray.wait(pending, num_returns=1)
+        ready, _ = ray.wait(list(pending), num_returns=1)
         for ref in ready:
-            keep(ray.get(ref))
+            sc = pending.pop(ref)
+            try:
+                row = ray.get(ref)
+            except ray.exceptions.RayError as err:  # run_case never raises: its worker died
+                for other in pending:
+                    ray.cancel(other, force=True)
+                why = type(err).__name__
+                raise WorkerDied(f"a Ray worker died ({why}) while running {sc.case_id}") from None
+            keep(row)
 
     for sc in todo:  # a few tasks in flight per CPU; one new task per finished one
-        pending.append(task.remote(planner, sc, trajectory=trajectories))
+        pending[task.remote(planner, sc, trajectory=trajectories, call_limit_s=call_limit_s)] = sc
         if len(pending) >= limit:
             collect()
     while pending:

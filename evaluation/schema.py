@@ -130,15 +130,22 @@ def unknown_columns(row: dict[str, Any]) -> list[str]:
     return sorted(k for k in row if k not in BY_NAME)
 
 
-def type_error(row: dict[str, Any]) -> str | None:
-    """Why a decoded journal row's values do not have their columns' types, or None."""
+def wrong_types(row: dict[str, Any]) -> list[str]:
+    """The row's columns whose values do not have their declared types (None stands for any)."""
+    out = []
     for k, v in row.items():
         col = BY_NAME.get(k)
         if v is None or col is None or col.types is None:
             continue
         if not isinstance(v, col.types) or (bool not in col.types and isinstance(v, bool)):
-            return f"{k!r} has the wrong type ({type(v).__name__})"
-    return None
+            out.append(k)
+    return out
+
+
+def type_error(row: dict[str, Any]) -> str | None:
+    """Why a decoded journal row's values do not have their columns' types, or None."""
+    bad = wrong_types(row)
+    return f"{bad[0]!r} has the wrong type ({type(row[bad[0]]).__name__})" if bad else None
 
 
 def exported_values(df: pd.DataFrame) -> pd.DataFrame:
