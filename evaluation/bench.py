@@ -16,6 +16,7 @@ import numpy as np
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env.scenario import Scenario
 
+from .registry import make_policy
 from .runner import run_case
 
 
@@ -89,6 +90,12 @@ def planning_times(planners: list[str], case_ids: list[str]) -> dict:
 
 
 def run(planners: list[str], case_ids: list[str], env_steps: int = 5000) -> dict:
+    """Env stepping (``env_steps`` steps) and each planner's calls over ``case_ids``; an unknown
+    planner or a bad count is refused before anything runs."""
+    if env_steps < 1:
+        raise ValueError(f"--env-steps: a whole number >= 1, got {env_steps}")
+    for name in planners:
+        make_policy(name)  # an unknown name fails now, in one line
     res = {"env_steps_per_s": env_steps_per_second(env_steps), "planners": planning_times(planners, case_ids)}
     ratios = {}
     names = [p for p in planners if res["planners"][p]["plan_ms_median"]]

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import csv
-import json
 from pathlib import Path
 
 from mirrorpark_env.grid import default_grid_cases
 from mirrorpark_env.layout_io import load_many
 from mirrorpark_env.scenario import Scenario
+from mirrorpark_env.textfile import csv_rows, parse_json, read_text
 from mirrorpark_env.vehicle import vehicle_named
 
 from .runner import unique
@@ -72,59 +71,105 @@ def layouts_from(paths: list[str], types: list[str] | None, vehicle: str | None 
     return unique(layouts)
 
 
-def load_case_file(path: str | Path) -> list[Scenario]:
-    """Cases from a JSON list of objects or a CSV with a header row, fields ``CASE_FIELDS``.
+class _Pairs(tuple):
+    """A JSON object of a case file as its (key, value) pairs: hashable, so that a file's
+    repeated cases are one object in memory and are built once."""
 
-    Raises ``ValueError`` naming the file, the case (1-based) and the field on any problem.
+
+def load_case_file(path: str | Path) -> list[Scenario]:
+    """Cases from a JSON list of objects or a CSV with a header row, fields ``CASE_FIELDS``
+    (UTF-8, with or without a byte-order mark), in the file's order, repeats included.
+
+    A row written again (the same text) is the same ``Scenario``, validated and built once:
+    a file of a million repeated cases loads in seconds. Raises ``ValueError`` naming the
+    file, the case (1-based) and the field on any problem.
     """
     p = Path(path)
     if p.suffix.lower() not in (".json", ".csv"):
         raise ValueError(f"{p}: case file must end in .json or .csv")
-    try:
-        text = p.read_bytes().decode("utf-8")
-    except OSError as err:
-        raise ValueError(f"{p}: cannot read case file ({err.strerror})") from None
-    except UnicodeDecodeError as err:
-        raise ValueError(f"{p}: not UTF-8 text (byte {err.start})") from None
+    text = read_text(p, "case file")
     if p.suffix.lower() == ".json":
-        try:
-            rows = json.loads(text)
-        except json.JSONDecodeError as err:
-            raise ValueError(f"{p}: not valid JSON: {err}") from None
-        if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
+        seen: dict = {}
+        rows = parse_json(text, p, object_pairs_hook=lambda pairs: _interned(_Pairs(pairs), seen))
+        del text, seen
+        if not isinstance(rows, list) or not all(isinstance(r, _Pairs) for r in rows):
             raise ValueError(f"{p}: expected a JSON list of objects with fields {', '.join(CASE_FIELDS)}")
+        header = None
     else:
-        rows = list(csv.DictReader(text.splitlines()))
-        if rows and set(CASE_FIELDS) - set(rows[0]):
-            missing = sorted(set(CASE_FIELDS) - set(rows[0]))
-            raise ValueError(f"{p}: CSV header lacks {', '.join(missing)}; needs {', '.join(CASE_FIELDS)}")
-    if not rows:
-        raise ValueError(f"{p}: no cases")
-    out = []
-    for n, row in enumerate(rows, 1):
-        if None in row:  # csv.DictReader: more values than the header names
-            raise ValueError(f"{p}: case {n}: more values than the header names")
-        bad = [k for k, v in row.items() if isinstance(v, bool) or isinstance(v, (list, dict))]
-        if bad:
-            raise ValueError(f"{p}: case {n}: {bad[0]}: expected a number or a name, got {row[bad[0]]!r}")
-        missing = [f for f in CASE_FIELDS if f not in row or row[f] in ("", None)]
-        if missing:
-            raise ValueError(f"{p}: case {n}: missing field(s) {', '.join(missing)}")
-        extra = sorted(set(row) - set(CASE_FIELDS) - {"start_x_offset"})
-        if extra:
-            raise ValueError(f"{p}: case {n}: unknown field(s) {', '.join(extra)}; allowed: {', '.join(CASE_FIELDS)}")
+        rows = csv_rows(text, p)
+        header = next(rows, None)
+        if header is not None:
+            header = [h.strip() for h in header]
+            if set(CASE_FIELDS) - set(header):
+                missing = sorted(set(CASE_FIELDS) - set(header))
+                raise ValueError(f"{p}: CSV header lacks {', '.join(missing)}; needs {', '.join(CASE_FIELDS)}")
+    out: list[Scenario] = []
+    built: dict = {}
+    n = 0
+    for raw in rows:
+        if header is not None and not any(v.strip() for v in raw):
+            continue  # a blank line
+        n += 1
+        key = raw if header is None else tuple(raw)
         try:
-            sc = Scenario.from_degrees(
-                row["parking_type"],
-                row["road_width"],
-                row["slot_length"],
-                row["slot_width"],
-                row["theta0_deg"],
-                row["y0"],
-                row.get("start_x_offset", 0.0) or 0.0,
-            )
-            sc.build()  # impossible geometry is rejected here, with the field named
-        except ValueError as err:
-            raise ValueError(f"{p}: case {n}: {err}") from None
+            sc = built.get(key)
+        except TypeError:  # a JSON value that is a list: refused below
+            sc = None
+        if sc is None:
+            sc = _case(p, n, dict(raw) if header is None else _csv_row(p, n, header, raw))
+            if isinstance(key, tuple) and _hashable(key):
+                built[key] = sc
         out.append(sc)
+    if not out:
+        raise ValueError(f"{p}: no cases")
     return out
+
+
+def _interned(value: _Pairs, seen: dict) -> _Pairs:
+    try:
+        return seen.setdefault(value, value)
+    except TypeError:  # holds a list: not a valid case, refused with its field named
+        return value
+
+
+def _hashable(key: tuple) -> bool:
+    try:
+        hash(key)
+    except TypeError:
+        return False
+    return True
+
+
+def _csv_row(p: Path, n: int, header: list[str], values: list[str]) -> dict:
+    if len(values) > len(header):
+        raise ValueError(f"{p}: case {n}: more values than the header names")
+    return dict(zip(header, values))
+
+
+def _case(p: Path, n: int, row: dict) -> Scenario:
+    """Case ``n`` of file ``p`` from its fields, checked and built."""
+    bad = [k for k, v in row.items() if isinstance(v, (bool, list, tuple, dict))]
+    if bad:
+        v = row[bad[0]]
+        v = dict(v) if isinstance(v, _Pairs) else v
+        raise ValueError(f"{p}: case {n}: {bad[0]}: expected a number or a name, got {v!r:.80}")
+    missing = [f for f in CASE_FIELDS if f not in row or row[f] in ("", None)]
+    if missing:
+        raise ValueError(f"{p}: case {n}: missing field(s) {', '.join(missing)}")
+    extra = sorted(set(row) - set(CASE_FIELDS) - {"start_x_offset"})
+    if extra:
+        raise ValueError(f"{p}: case {n}: unknown field(s) {', '.join(extra)}; allowed: {', '.join(CASE_FIELDS)}")
+    try:
+        sc = Scenario.from_degrees(
+            row["parking_type"],
+            row["road_width"],
+            row["slot_length"],
+            row["slot_width"],
+            row["theta0_deg"],
+            row["y0"],
+            row.get("start_x_offset", 0.0) or 0.0,
+        )
+        sc.build()  # impossible geometry is rejected here, with the field named
+    except (ValueError, OverflowError) as err:
+        raise ValueError(f"{p}: case {n}: {err}") from None
+    return sc

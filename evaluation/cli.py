@@ -31,7 +31,7 @@ from .mirror_demo import mirror_demo
 from .registry import MAIN, make_policy
 from .report import write_report
 from .runner import WorkerDied, evaluate
-from .store import export_table, read_results
+from .store import REQUIRED, export_table, read_results
 
 
 def cmd_grid(args: argparse.Namespace) -> int:
@@ -95,7 +95,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         trajectories=args.trajectories,
         call_limit_s=args.call_limit,
     )
-    df = read_results([out])
+    df = read_results([out], REQUIRED)
     ids = {sc.case_id for sc in scenarios}
     df = df[df["case_id"].isin(ids) & (df["planner"] == args.planner)]
     if args.export:
@@ -103,7 +103,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         print(f"wrote {export_table(df, args.export, args.planner, args.chunk, envs)}", file=sys.stderr)
     s = summary(df, args.planner)
     if args.layouts:
-        report = write_layout_report(read_results([out]), scenarios, out)
+        report = write_layout_report(read_results([out], REQUIRED), scenarios, out)
         if not args.json:
             print(f"{args.planner}: {s['cases']} layouts; report in {report}")
     if args.json:
@@ -139,14 +139,14 @@ def cmd_collect(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
 
-    path = write_report(read_results(args.results), args.out, baseline=args.baseline, notes=args.notes)
+    path = write_report(read_results(args.results, REQUIRED), args.out, baseline=args.baseline, notes=args.notes)
     print(f"wrote {path}")
     return 0
 
 
 def cmd_diff(args: argparse.Namespace) -> int:
 
-    d = compare(read_results(args.before), read_results(args.after), by=args.by)
+    d = compare(read_results(args.before, REQUIRED), read_results(args.after, REQUIRED), by=args.by)
     if args.json:
         print(json.dumps(d.to_json()))
     else:
@@ -170,7 +170,7 @@ def cmd_main(args: argparse.Namespace) -> int:
             mixed_code=args.mixed_code,
             call_limit_s=args.call_limit,
         )
-    df = read_results([out / p for p in planners])
+    df = read_results([out / p for p in planners], REQUIRED)
     path = write_report(df, out / "report")
     print(f"wrote {path}")
     return 0
@@ -373,7 +373,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--planners", "--planner", nargs="+", default=None, help="planner names (default: the main ones)")
     b.add_argument("--sample", choices=("smoke", "standard"), default="smoke", help="the sample to take cases from")
     b.add_argument("--cases", type=_positive_int, default=9, help="cases spread over the sample (default 9)")
-    b.add_argument("--env-steps", type=int, default=5000)
+    b.add_argument("--env-steps", type=_positive_int, default=5000, help="env steps to time (default 5000)")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench)
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .committed import committed_rows
 from .compare import markdown, paired_table, run_table, success_figure
-from .store import read_results
+from .store import REQUIRED, read_results
 
 
 def add_compare(sub) -> None:
@@ -34,7 +34,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     found = [
         (planner, path, rows)
         for path in args.runs
-        for planner, rows in read_results([path]).groupby("planner", sort=False)
+        for planner, rows in read_results([path], REQUIRED).groupby("planner", sort=False)
     ]
     if not found:
         raise ValueError("runs: no rows in the runs given")

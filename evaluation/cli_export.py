@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .store import read_results
+from .store import REQUIRED, read_results
 from .trajectories import write_trajectories
 
 
@@ -20,7 +20,7 @@ def add_export(sub) -> None:
 
 def cmd_export(args: argparse.Namespace) -> int:
 
-    df = read_results(args.runs)
+    df = read_results(args.runs, REQUIRED)
     if args.planner is not None:
         if args.planner not in set(df["planner"]):
             raise ValueError(f"--planner: one of {', '.join(sorted(set(df['planner'])))}, got {args.planner!r}")

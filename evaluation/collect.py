@@ -46,6 +46,10 @@ def collect(
     if the episodes there are ``planner``'s and came from this code (``mixed_code``: whatever
     code they came from). Returns the Minari dataset's folder."""
 
+    try:  # before any case runs, not after all of them
+        import minari  # noqa: F401
+    except ImportError:
+        raise ValueError("collect needs the rl extra (minari is missing): pip install -e '.[rl]'") from None
     make_policy(planner)  # an unknown planner fails now
     workers = (os.cpu_count() or 1) if workers is None else workers
     if workers < 1:

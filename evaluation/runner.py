@@ -28,7 +28,7 @@ from .call_limit import CALL_LIMIT_S
 from .episode import run_case, worker_env
 from .provenance import check_resume
 from .registry import make_policy
-from .store import ResultStore, locked
+from .store import ResultStore, check_columns, locked
 
 __all__ = ["WorkerDied", "evaluate", "run_case", "run_parallel", "slot_of", "unique", "worker_env"]
 
@@ -37,9 +37,12 @@ def unique(scenarios: Iterable[Scenario]) -> tuple[list[Scenario], int]:
     """The scenarios in order with repeats (same id) dropped, and how many were dropped. Two
     grid cases that share an id but differ (by less than the ids' precision) are refused,
     both named: one would silently stand for the other."""
-    out, seen, n_in = [], {}, 0
+    out, seen, objects, n_in = [], {}, {}, 0
     for sc in scenarios:
         n_in += 1
+        if id(sc) in objects:  # the very object again (a case file's repeated rows): nothing to check
+            continue
+        objects[id(sc)] = sc  # held, so that no other object takes its id
         first = seen.get(sc.case_id)  # a Scenario's or a Layout's
         if first is None:
             seen[sc.case_id] = sc
@@ -89,6 +92,9 @@ def evaluate(
         raise ValueError(f"call_limit_s: seconds >= 0 (0: none), got {call_limit_s}")
     store = ResultStore(out)
     with locked(store.folder):  # one run per results folder at a time
+        stored = store.table()
+        if len(stored):  # a folder of some other tool's table: refused before anything runs
+            check_columns(stored, store.parquet if store.parquet.exists() else store.folder)
         _run_into(
             store, planner, scenarios, workers, backend, ray_address, progress, mixed_code, trajectories, call_limit_s
         )

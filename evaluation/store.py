@@ -37,6 +37,10 @@ from .code_stamp import code_id
 from .schema import EXPORT_COLUMNS, exported_values, type_error
 
 KEY = ["planner", "case_id"]
+# What every row has, an error row too (``episode.run_case``; exported tables keep them all):
+# a table without them is not MirrorPark's results, and readers would fail on it.
+REQUIRED = (*KEY, "parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "success")
+REQUIRED += ("failed_criterion", "feasible", "failure_cause")
 ENVIRONMENTS_KEY = b"mirrorpark.environments"  # an exported table's metadata: where it ran
 
 
@@ -52,6 +56,14 @@ def check_row(row: Any) -> str | None:
         if not isinstance(row.get(k), str) or not row[k]:
             return f"{k!r} missing or not a non-empty string"
     return type_error(row)
+
+
+def check_columns(df: pd.DataFrame, path: str | Path, required: tuple[str, ...] = REQUIRED) -> None:
+    """Refuse a table that lacks the ``required`` columns (by default those every result row
+    has), naming the file and them."""
+    missing = [c for c in required if c not in df.columns]
+    if missing:
+        raise ValueError(f"{path}: not a MirrorPark results table: lacks the column(s) {', '.join(missing)}")
 
 
 @contextmanager
@@ -209,7 +221,7 @@ class ResultStore:
 
     def _read_parquet(self, path: Path) -> pd.DataFrame | None:
         try:
-            return pd.read_parquet(path)
+            df = pd.read_parquet(path)
         except Exception as err:  # noqa: BLE001  (any damage: report and set aside, never fatal)
             what = f"{path}: unreadable ({type(err).__name__})"
             if self.writable:
@@ -222,6 +234,8 @@ class ResultStore:
                 what += f"; moved to {aside.name}, its cases rerun"
             warnings.warn(what, StoreWarning, stacklevel=3)
             return None
+        check_columns(df, path, tuple(KEY))  # a foreign table: refused, not taken for results
+        return df
 
     def table(self) -> pd.DataFrame:
         """Every finished row: results.parquet, then the parts, then the journal (last wins)."""
@@ -272,15 +286,23 @@ def record_environment(log: Path, planner: str, cases: int) -> None:
 
 
 def read_environments(log: Path) -> list[dict[str, Any]]:
-    """The lines of ``record_environment``'s ``log``, oldest first (lines that do not parse are skipped)."""
+    """The lines of ``record_environment``'s ``log``, oldest first. A damaged line (not UTF-8,
+    not a JSON object) is skipped with a ``StoreWarning`` naming the file and line, as the
+    journal's are: it only describes runs, so a resume goes on without it."""
     if not log.exists():
         return []
     out = []
-    for line in log.read_text().splitlines():
-        try:
-            out.append(json.loads(line))
-        except json.JSONDecodeError:
+    for n, raw in enumerate(log.read_bytes().splitlines(), 1):
+        if not raw.strip():
             continue
+        try:
+            line = json.loads(raw.decode("utf-8"))
+        except (UnicodeDecodeError, ValueError, RecursionError):
+            line = None
+        if not isinstance(line, dict):
+            warnings.warn(f"{log}:{n}: skipped, not a run's record (a JSON object)", StoreWarning, stacklevel=2)
+            continue
+        out.append(line)
     return out
 
 
@@ -304,11 +326,13 @@ def _json_default(o):
     return str(o)
 
 
-def read_results(paths: list[str | Path]) -> pd.DataFrame:
+def read_results(paths: list[str | Path], required: tuple[str, ...] = tuple(KEY)) -> pd.DataFrame:
     """Results from run folders (journal, parts, results.parquet), folders of exported tables
     (``export_table``'s ``*.parquet``, e.g. a grid's chunks), or Parquet / JSON-lines files.
 
-    Raises ``ValueError`` naming a path that is missing, of the wrong kind or empty.
+    Raises ``ValueError`` naming a path that is missing, of the wrong kind, empty, or
+    without the ``required`` columns (the commands ask for ``REQUIRED``: a foreign table is
+    refused in one line rather than failing half-way).
     """
     frames = []
     for p in map(Path, paths):
@@ -318,7 +342,7 @@ def read_results(paths: list[str | Path]) -> pd.DataFrame:
             store = ResultStore(p, writable=False)
             exported = sorted(p.glob("*.parquet"))
             if not (store.journal.exists() or store.parts.exists() or store.parquet.exists()) and exported:
-                frames.append(read_results(exported))  # a folder of exported tables
+                frames.append(read_results(exported, required))  # a folder of exported tables
                 continue
             df = store.table()
         elif not p.exists():
@@ -335,8 +359,9 @@ def read_results(paths: list[str | Path]) -> pd.DataFrame:
                 raise ValueError(f"{p}: not a JSON-lines results file ({err})") from None
         else:
             raise ValueError(f"{p}: expected a results folder, a .parquet or a .jsonl file")
-        if not len(df) or not set(KEY) <= set(df.columns):
+        if not len(df):
             raise ValueError(f"{p}: holds no result rows")
+        check_columns(df, p, required)
         frames.append(df)
     if not frames:
         raise ValueError("no results given")

@@ -14,8 +14,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal, TypeVar, Union, get_args, get_origin
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from .textfile import parse_yaml, read_text
 
 
 class ParkingType(str, Enum):
@@ -211,14 +212,7 @@ def validate(model: type[M], data: Any, source: str = "config") -> M:
 def read_yaml(path: str | Path) -> dict[str, Any]:
     """Read a YAML mapping; a missing or malformed file raises ``ValueError``."""
     p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as err:
-        raise ValueError(f"{p}: cannot read config file ({err.strerror})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        raise ValueError(f"{p}: not valid YAML: {err}") from None
+    data = parse_yaml(read_text(p, "config file"), p)
     if data is None:
         return {}
     if not isinstance(data, dict):

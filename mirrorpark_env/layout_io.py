@@ -27,7 +27,6 @@ recentred frame. A file may hold several rows: layout ``STEM`` for one, else
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 from pathlib import Path
@@ -38,6 +37,7 @@ from pydantic import Field, model_validator
 from .config import StrictModel, VehicleConfig, validate
 from .layout import Layout, Slot
 from .slot_inference import infer_slot
+from .textfile import csv_rows, parse_json, parse_yaml, read_text
 from .vehicle import VEHICLES, VehicleParams, vehicle_name, vehicle_named
 
 SUFFIXES = (".yaml", ".yml", ".json", ".csv")
@@ -173,29 +173,9 @@ def write_layout(layout: Layout, path: str | Path) -> Path:
     return p
 
 
-def _read_text(p: Path) -> str:
-    try:
-        return p.read_bytes().decode("utf-8")
-    except OSError as err:
-        raise ValueError(f"{p}: cannot read layout file ({err.strerror})") from None
-    except UnicodeDecodeError as err:
-        raise ValueError(f"{p}: not UTF-8 text (byte {err.start})") from None
-
-
 def _native(p: Path, vehicle: VehicleParams | None = None) -> list[Layout]:
-    text = _read_text(p)
-    if p.suffix.lower() == ".json":
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as err:
-            raise ValueError(f"{p}: not valid JSON: {err}") from None
-    else:
-        import yaml
-
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as err:
-            raise ValueError(f"{p}: not valid YAML: {err}") from None
+    text = read_text(p, "layout file")
+    data = parse_json(text, p) if p.suffix.lower() == ".json" else parse_yaml(text, p)
     m = validate(LayoutModel, data, source=str(p))
     try:
         return [from_model(m, p.stem, p.parent, vehicle)]
@@ -247,7 +227,7 @@ def _is_float(v: str) -> bool:
 
 
 def _tpcap(p: Path, vehicle: VehicleParams | None = None) -> list[Layout]:
-    rows = [r for r in csv.reader(_read_text(p).splitlines()) if any(c.strip() for c in r)]
+    rows = [r for r in csv_rows(read_text(p, "layout file"), p) if any(c.strip() for c in r)]
     if not rows:
         raise ValueError(f"{p}: no rows")
     out = []

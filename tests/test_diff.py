@@ -18,7 +18,10 @@ def _rows(planner: str = "mirror", n: int = 4) -> pd.DataFrame:
         {
             "planner": planner,
             "case_id": [f"case{k}" for k in range(n)],
+            **{"parking_type": "reverse", "road_width": 6.0, "slot_length": 4.82, "slot_width": 2.3, "theta0_deg": 0.0},
             "success": [k % 2 == 0 for k in range(n)],
+            "failed_criterion": [None if k % 2 == 0 else "gave_up" for k in range(n)],
+            "feasible": True,
             "collision": False,
             "failure_cause": [None if k % 2 == 0 else "gave_up" for k in range(n)],
             "switches": [k + 1 for k in range(n)],
