@@ -20,6 +20,7 @@ import numpy as np
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env.criteria import iso_pose_exists
 from mirrorpark_env.layout import Layout
+from mirrorpark_env.layout_io import content_key
 from mirrorpark_env.scenario import Scenario
 from mirrorpark_env.vehicle import VehicleParams, from_action, vehicle_name
 from planners.base import run_episode
@@ -61,6 +62,7 @@ def layout_fields(lay: Layout) -> dict[str, Any]:
     return {
         "case_id": lay.name,
         "layout": lay.name,
+        "layout_key": content_key(lay),
         "vehicle": "paper" if lay.vehicle is None else (vehicle_name(lay.vehicle) or "custom"),
         "parking_type": s.parking_type.value if s is not None else "none",
         "road_width": lay.road_width,

@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 
 from mirrorpark_env.criteria import iso_pose_slack
+from mirrorpark_env.textfile import read_text
 from mirrorpark_env.vehicle import VehicleParams
 
 from .figures import (
@@ -48,7 +49,7 @@ def write_report(
     else:
         path, prefix = out / "report.md", ""
     out.mkdir(parents=True, exist_ok=True)
-    notes_text = Path(notes).read_text() if notes is not None else None
+    notes_text = read_text(notes, "notes file") if notes is not None else None
     if "y1" not in df:
         df = df.assign(y1=df["road_width"] - df["y0"])
     df = with_every_column(df)  # a run whose every case errored has no outcome columns

@@ -47,6 +47,12 @@ COLUMNS: tuple[Column, ...] = (
     Column("case_id", "str", doc="the grid case's id, or the layout's name"),
     Column("layout", "str", exported=False, doc="the layout's name (layout rows only)"),
     Column(
+        "layout_key",
+        "str",
+        exported=False,
+        doc="a hash of the layout's content and car (layout rows only): its rows' key",
+    ),
+    Column(
         "vehicle", "str", exported=False, doc="the car a layout ran with: paper, tpcap or custom (layout rows only)"
     ),
     Column("parking_type", "str", doc="parallel, reverse, angle (none: a layout without a slot)"),

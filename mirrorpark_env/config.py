@@ -190,9 +190,14 @@ def _format_errors(source: str, err: ValidationError) -> str:
         loc = ".".join(str(p) for p in e["loc"])
         where = f"{loc}: " if loc else ""
         got = e.get("input")
-        got_s = "" if isinstance(got, dict) else f" (got {got!r})"
+        shown = repr(got)
+        shown = shown if len(shown) <= 80 else f"{shown[:60]}... ({len(shown)} characters)"  # one readable line
+        got_s = "" if isinstance(got, dict) else f" (got {shown})"
         lines.append(f"{where}{e['msg'].removeprefix('Value error, ')}{got_s}")
-    return f"{source}: " + "; ".join(lines)  # one line, every bad field named
+    if len(lines) > 8:  # one readable line: the first problems, and how many more
+        lines = [*lines[:8], f"and {len(lines) - 8} more"]
+    text = f"{source}: " + "; ".join(lines)  # one line, each bad field named
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)  # a key's newline stays escaped
 
 
 def validate(model: type[M], data: Any, source: str = "config") -> M:

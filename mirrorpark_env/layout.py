@@ -57,6 +57,9 @@ def _polygon(name: str, value) -> np.ndarray:
     return p
 
 
+NAME_MAX = 120  # a layout name's characters: it is a case id, a table cell and a figure's file name
+
+
 @dataclass(frozen=True, eq=False)
 class Slot:
     """The target slot: a rectangle, its type, and its entrance edge (corner i to i + 1).
@@ -159,6 +162,11 @@ class Layout:
             object.__setattr__(self, "bounds", b)
         if not self.name or not isinstance(self.name, str):
             raise ValueError(f"name: a non-empty string, got {self.name!r}")
+        if len(self.name) > NAME_MAX or not self.name.isprintable():
+            raise ValueError(
+                f"name: at most {NAME_MAX} printable characters (it names rows and files), got "
+                f"{len(self.name)} characters{'' if self.name.isprintable() else ' with control characters'}"
+            )
         if self.vehicle is not None and not isinstance(self.vehicle, VehicleParams):
             raise ValueError(f"vehicle: a VehicleParams (vehicle.vehicle_named), got {type(self.vehicle).__name__}")
 

@@ -27,6 +27,7 @@ recentred frame. A file may hold several rows: layout ``STEM`` for one, else
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from pathlib import Path
@@ -35,7 +36,7 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from .config import StrictModel, VehicleConfig, validate
-from .layout import Layout, Slot
+from .layout import NAME_MAX, Layout, Slot
 from .slot_inference import infer_slot
 from .textfile import csv_rows, parse_json, parse_yaml, read_text
 from .vehicle import VEHICLES, VehicleParams, vehicle_name, vehicle_named
@@ -69,7 +70,7 @@ class SlotModel(StrictModel):
 
 
 class LayoutModel(StrictModel):
-    name: str | None = Field(None, min_length=1)
+    name: str | None = Field(None, min_length=1, max_length=NAME_MAX)
     start: PoseModel
     target: PoseModel
     obstacles: list[list[Point]] = Field(default_factory=list)
@@ -156,6 +157,18 @@ def to_dict(layout: Layout) -> dict:
     if layout.vehicle is not None:
         d["vehicle"] = vehicle_name(layout.vehicle) or layout.vehicle.as_config()
     return d
+
+
+def content_key(layout: Layout) -> str:
+    """A short hash of everything a layout's episode depends on (name, obstacles, boundary,
+    start, target, slot, bounds, road width, frame origin and car): the key of its result
+    rows beside its name, so that an edited file is run again, not answered from a row of
+    its old content."""
+    d = to_dict(layout)
+    d["vehicle"] = None if layout.vehicle is None else layout.vehicle.as_config()
+    d["origin"] = [float(v) for v in layout.origin]
+    text = json.dumps(d, sort_keys=True, default=float, allow_nan=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def write_layout(layout: Layout, path: str | Path) -> Path:

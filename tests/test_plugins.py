@@ -162,13 +162,13 @@ EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "rs-planner"
 FORCED = textwrap.dedent(
     """
     import multiprocessing as mp, sys
-    from evaluation import runner
+    from evaluation import pool
 
     def forced():
         ctx = mp.get_context(sys.argv[1])
         return ctx, {}
 
-    runner._pool_context = forced
+    pool._pool_context = forced
     from evaluation.cli import main
     sys.exit(main(sys.argv[2:]))
     """

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from evaluation import registry
-from evaluation.runner import _pool_context, batches, evaluate, run_parallel
+from evaluation.pool import _pool_context, batches, run_parallel
+from evaluation.runner import evaluate
 from evaluation.store import read_results
 from mirrorpark_env import Scenario
 from planners.base import Policy
