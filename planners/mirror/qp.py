@@ -91,7 +91,7 @@ class MirrorQP:
         c = np.concatenate([c, slack_weights(cfg, n_s)])
         x_l = np.concatenate([x_l, np.zeros(n_s)])
         x_u = np.concatenate([x_u, np.full(n_s, np.inf)])
-        qp = QP(P, c, A, b, G, h_l, np.array(rows.h_u, float), x_l, x_u)
+        qp = QP(P, c, A, b, G, h_l, np.array(rows.h_u, float), x_l, x_u, row_slacks=True)
         return qp, rows.disj, active, rows.preferred
 
     def _stopping_start(self, xi0: np.ndarray, cand: Candidate, lin, x_l: np.ndarray, x_u: np.ndarray):
