@@ -11,7 +11,8 @@ import scipy.sparse as sp
 from evaluation.runner import run_case
 from mirrorpark_env.scenario import Scenario
 from planners.mirror import solvers
-from planners.mirror.solvers import INACTIVE, QP, PiqpQP, lean
+from planners.mirror.lean_qp import INACTIVE, lean
+from planners.mirror.solvers import QP, PiqpQP
 
 CASE = "parallel_rw4.50_sl6.72_sw2.50_th+10_y1.10"  # obstacle rows, some of them switched off by branch and bound
 
