@@ -93,8 +93,7 @@ def run_parallel(
                             w.give(todo.pop())
                 if not w.proc.is_alive() and w.run is not None:
                     w.proc.join(1.0)
-                    item = items[w.current] if w.current is not None else None
-                    what = describe(item) if item is not None else "a run of items"
+                    what = describe(items[w.in_hand()])
                     raise WorkerDied(
                         f"a worker process (PID {w.proc.pid}) died ({_exit_name(w.proc.exitcode)}) while running {what}"
                     )
@@ -112,6 +111,7 @@ class _Worker:
     def __init__(self, proc, conn) -> None:
         self.proc, self.conn = proc, conn
         self.run: list | None = None
+        self.finished = 0  # items of ``run`` done
         self.current: int | None = None
         self.runs_done = 0
 
@@ -124,8 +124,13 @@ class _Worker:
         return cls(proc, mine)
 
     def give(self, run: list) -> None:
-        self.run = run
+        self.run, self.finished = run, 0
         self.conn.send(run)
+
+    def in_hand(self) -> int:
+        """The index of the item the worker runs (or was about to start): its last ``start``,
+        else the first of its run not finished."""
+        return self.current if self.current is not None else self.run[min(self.finished, len(self.run) - 1)][0]
 
     def messages(self) -> list[tuple]:
         """What the worker has sent so far (all of it, once it has ended)."""
@@ -138,6 +143,7 @@ class _Worker:
                 else:
                     if msg[0] == "done":
                         self.current = None
+                        self.finished += 1
                     out.append(msg)
         except (EOFError, OSError):  # the worker is gone; its sentinel says so
             pass
