@@ -113,12 +113,11 @@ def load_case_file(path: str | Path) -> list[Scenario]:
         key = raw if header is None else tuple(raw)
         try:
             sc = built.get(key)
-        except TypeError:  # a JSON value that is a list: refused below
+        except TypeError:  # a JSON value that is a list: ``_case`` refuses it
             sc = None
         if sc is None:
             sc = _case(p, n, dict(raw) if header is None else _csv_row(p, n, header, raw))
-            if isinstance(key, tuple) and _hashable(key):
-                built[key] = sc
+            built[key] = sc  # hashable: ``_case`` took only numbers and names
         out.append(sc)
     if not out:
         raise ValueError(f"{p}: no cases")
@@ -130,14 +129,6 @@ def _interned(value: _Pairs, seen: dict) -> _Pairs:
         return seen.setdefault(value, value)
     except TypeError:  # holds a list: not a valid case, refused with its field named
         return value
-
-
-def _hashable(key: tuple) -> bool:
-    try:
-        hash(key)
-    except TypeError:
-        return False
-    return True
 
 
 def _csv_row(p: Path, n: int, header: list[str], values: list[str]) -> dict:

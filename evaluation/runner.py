@@ -92,9 +92,6 @@ def evaluate(
         raise ValueError(f"call_limit_s: seconds >= 0 (0: none), got {call_limit_s}")
     store = ResultStore(out)
     with locked(store.folder):  # one run per results folder at a time
-        stored = store.table()
-        if len(stored):  # a folder of some other tool's table: refused before anything runs
-            check_columns(stored, store.parquet if store.parquet.exists() else store.folder)
         _run_into(
             store, planner, scenarios, workers, backend, ray_address, progress, mixed_code, trajectories, call_limit_s
         )
@@ -115,7 +112,10 @@ def _run_into(
 ) -> None:
     """``evaluate``'s run, the folder locked: the cases not yet stored, their rows appended."""
 
-    done = stored_keys(store.table(), planner)
+    table = store.table()
+    if len(table):  # a folder of some other tool's table: refused before anything runs
+        check_columns(table, store.parquet if store.parquet.exists() else store.folder)
+    done = stored_keys(table, planner)
     check_resume(store.environments(), planner, len(done), store.folder, mixed_code)
     cases = unique(scenarios)[0]
     todo = [sc for sc in cases if not _finished(sc, done)]
