@@ -39,8 +39,11 @@ from .schema import EXPORT_COLUMNS, exported_values, type_error
 KEY = ["planner", "case_id"]
 # What every row has, an error row too (``episode.run_case``; exported tables keep them all):
 # a table without them is not MirrorPark's results, and readers would fail on it.
-REQUIRED = (*KEY, "parking_type", "road_width", "slot_length", "slot_width", "theta0_deg", "success")
-REQUIRED += ("failed_criterion", "feasible", "failure_cause")
+REQUIRED = (
+    *KEY,
+    *("parking_type", "road_width", "slot_length", "slot_width", "theta0_deg"),
+    *("success", "failed_criterion", "feasible", "failure_cause"),
+)
 ENVIRONMENTS_KEY = b"mirrorpark.environments"  # an exported table's metadata: where it ran
 
 
