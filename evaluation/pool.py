@@ -55,8 +55,9 @@ def run_parallel(
 
     A worker that dies while it runs an item stops the run within about a second with
     ``WorkerDied``, naming the item (``describe(item)``); an item whose ``fn`` raises stops
-    it with that exception (one that is not an ``Exception``, such as ``SystemExit``, as a
-    ``RuntimeError`` saying so). Either way every worker is stopped before this returns.
+    it with that exception (one that is not an ``Exception``, such as a ``KeyboardInterrupt``
+    a planner raises itself, with ``WorkerDied`` saying so). Either way every worker is
+    stopped before this returns.
     """
     runs = [
         list(run) for run in batches(list(enumerate(items)), None if group is None else lambda it: group(it[1]), batch)
@@ -83,6 +84,8 @@ def run_parallel(
                         left -= 1
                     elif kind == "error":
                         raise msg[2]
+                    elif kind == "abort":  # not an Exception (KeyboardInterrupt, SystemExit): the run stops
+                        raise WorkerDied(f"{describe(items[msg[1]])} raised {msg[2]}")
                     elif kind == "idle":
                         w.runs_done += 1
                         w.run = None
@@ -188,22 +191,23 @@ def _worker_main(conn, fn, extra: dict) -> None:
             conn.send(("start", idx))
             try:
                 out = fn(item)
-            except BaseException as err:  # noqa: BLE001 - sent to the parent, which stops the run
+            except Exception as err:  # noqa: BLE001 - sent to the parent, which raises it
                 conn.send(("error", idx, _sendable(err)))
+                return
+            except BaseException as err:  # noqa: BLE001 - SIGINT is the parent's: the item raised it itself
+                conn.send(("abort", idx, f"{type(err).__name__}: {err}"))
                 return
             conn.send(("done", idx, out))
         conn.send(("idle",))
 
 
-def _sendable(err: BaseException) -> Exception:
-    """``err`` as the parent can raise it: itself where it pickles and is an ``Exception``."""
-    if isinstance(err, Exception):
-        try:
-            pickle.loads(pickle.dumps(err))
-            return err
-        except Exception:  # noqa: BLE001
-            pass
-    return RuntimeError(f"{type(err).__name__}: {err}")
+def _sendable(err: Exception) -> Exception:
+    """``err`` as the parent can raise it: itself where it pickles, else a ``RuntimeError``."""
+    try:
+        pickle.loads(pickle.dumps(err))
+        return err
+    except Exception:  # noqa: BLE001
+        return RuntimeError(f"{type(err).__name__}: {err}")
 
 
 def batches(items: list, group: Callable[[Any], Hashable] | None = None, batch: int = 8) -> list[list]:

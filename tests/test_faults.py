@@ -66,6 +66,10 @@ PLUGIN = textwrap.dedent(
         def act(self, obs, info):
             sys.exit(0)
 
+    class Interrupts(Still):  # raises KeyboardInterrupt itself (no Ctrl-C came)
+        def act(self, obs, info):
+            raise KeyboardInterrupt("planner's own")
+
     class NumberStatus:  # a duck-typed policy whose status is an int
         name, gave_up = "number", True
 
@@ -94,6 +98,7 @@ PLUGIN = textwrap.dedent(
     def still(): return Still()
     def stuck(): return Stuck()
     def exits(): return Exits()
+    def interrupts(): return Interrupts()
     def number(): return NumberStatus()
     def hangs(): return Hangs()
     def loud(): return Loud()
@@ -188,6 +193,17 @@ def test_a_plugin_that_calls_sys_exit_gives_error_rows_never_an_empty_run_or_a_h
     assert cli(_evaluate("hostile:exits", _cases(tmp_path), out, "--workers", workers)) == 0
     df = read_results([out])
     assert len(df) == 4 and (df["error"] == "SystemExit: 0").all() and (df["planner_status"] == "error").all()
+
+
+def test_a_plugins_own_keyboard_interrupt_in_a_worker_stops_the_run_in_one_line(tmp_path, plug, capsys):
+    """In a worker it cannot be Ctrl-C (workers leave SIGINT to the parent): the run stops,
+    exit 1, naming the case; with one worker it is taken for Ctrl-C (exit 130, resumable)."""
+    out = tmp_path / "o"
+    assert cli(_evaluate("hostile:interrupts", _cases(tmp_path), out, "--workers", "2")) == 1
+    line = _one_line(capsys.readouterr().err)
+    assert "raised KeyboardInterrupt: planner's own" in line and "rerun the same command to resume" in line
+    case = line.split("error: ")[1].split(" raised")[0]
+    assert case in {sc.case_id for sc in load_case_file(tmp_path / "cases.csv")}
 
 
 def test_check_planner_reports_a_sys_exit_as_a_problem(plug, capsys):
