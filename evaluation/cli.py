@@ -8,6 +8,8 @@ import os
 import signal
 import sys
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from mirrorpark_env.config import PARKING_TYPES, GridConfig, default_grid, load
@@ -389,19 +391,27 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def _one_line_warnings() -> None:
-    """Warnings (a damaged results folder, say) as one line each, without source code."""
+@contextmanager
+def _one_line_warnings() -> Iterator[None]:
+    """Warnings (a damaged results folder, say) as one line each, without source code, while
+    a command runs (a caller's own hook is back afterwards)."""
 
     def show(message, category, filename, lineno, file=None, line=None):
         print(f"mirrorpark: warning: {message}", file=sys.stderr)
 
-    warnings.showwarning = show
+    before, warnings.showwarning = warnings.showwarning, show
+    try:
+        yield
+    finally:
+        warnings.showwarning = before
 
 
-def _stop_on_sigterm() -> list[bool]:
-    """Make SIGTERM (``kill``, a scheduler's stop, ``timeout``) stop a run as Ctrl-C does:
-    without it the process dies at once, and its worker processes run on, orphaned, into
-    the case in hand (1.4 s on with cases of 1 s). Returns a flag set when SIGTERM came."""
+@contextmanager
+def _stop_on_sigterm() -> Iterator[list[bool]]:
+    """Make SIGTERM (``kill``, a scheduler's stop, ``timeout``) stop a run as Ctrl-C does while
+    a command runs: without it the process dies at once, and its worker processes run on,
+    orphaned, into the case in hand (1.4 s on with cases of 1 s). Yields a flag set when
+    SIGTERM came; the caller's handler is back afterwards."""
 
     came = [False]
 
@@ -410,10 +420,14 @@ def _stop_on_sigterm() -> list[bool]:
         raise KeyboardInterrupt
 
     try:
-        signal.signal(signal.SIGTERM, stop)
+        before = signal.signal(signal.SIGTERM, stop)
     except ValueError:  # not the main thread: leave SIGTERM as it is
-        pass
-    return came
+        yield came
+        return
+    try:
+        yield came
+    finally:
+        signal.signal(signal.SIGTERM, before)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -423,8 +437,12 @@ def main(argv: list[str] | None = None) -> int:
             f"results/{args.planner.replace(':', '_').replace('/', '_')}-"
             f"{'layouts' if args.layouts else 'cases' if args.cases else args.sample}"
         )
-    _one_line_warnings()
-    terminated = _stop_on_sigterm()
+    with _one_line_warnings(), _stop_on_sigterm() as terminated:
+        return _run(args, terminated)
+
+
+def _run(args: argparse.Namespace, terminated: list[bool]) -> int:
+    """The command, its failures as one line and an exit code."""
     try:
         return args.func(args)
     except ValueError as err:  # bad input: one clear line, no traceback

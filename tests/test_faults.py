@@ -484,3 +484,17 @@ def test_hostile_files_load_or_are_refused_in_one_line_naming_the_file(tmp_path_
         assert msg.startswith(f"{path}") and "\n" not in msg and len(msg) < 2000, msg
     else:
         assert loaded
+
+
+def test_the_command_line_run_in_process_hands_back_the_callers_hooks(tmp_path, capsys):
+    """``cli.main`` called from a program (a notebook, a test) leaves its warning printer and
+    SIGTERM handler in place only while the command runs."""
+    mine = lambda *a, **k: None  # noqa: E731
+    before_show, warnings.showwarning = warnings.showwarning, mine
+    before_term = signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        assert cli(["grid", "--json"]) == 0
+        assert warnings.showwarning is mine and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+    finally:
+        warnings.showwarning = before_show
+        signal.signal(signal.SIGTERM, before_term)
