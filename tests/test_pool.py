@@ -130,3 +130,16 @@ def test_an_items_failure_reaches_the_parent_as_itself():
     with pytest.raises(ValueError, match="item 1 is bad"):
         run_parallel(_fails_on_one, [0, 1, 2, 3], kept.append, workers=2, group=lambda it: it // 2, batch=2)
     assert 0 in kept and 1 not in kept
+
+
+def test_workers_are_replaced_after_their_runs_and_every_item_runs_once(monkeypatch):
+    """A worker retires after ``_RUNS_PER_WORKER`` runs (what a long run leaks, it frees); the
+    run goes on in a fresh one, losing and repeating nothing."""
+    from evaluation import pool
+
+    monkeypatch.setattr(pool, "_RUNS_PER_WORKER", 2)
+    items = [(k, 0) for k in range(10)]
+    got = []
+    run_parallel(_pid_after_a_while, items, got.append, workers=2)
+    assert sorted(item for item, _ in got) == items
+    assert len({pid for _, pid in got}) >= 4  # ten runs of one item, two per worker
