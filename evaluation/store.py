@@ -199,13 +199,8 @@ class ResultStore:
             for n, raw in enumerate(f, 1):
                 if not raw.strip():
                     continue
-                try:
-                    row = json.loads(raw.decode("utf-8"))
-                except UnicodeDecodeError:
-                    why = "not UTF-8 text"
-                except json.JSONDecodeError:
-                    why = "not valid JSON (cut short by an interruption?)"
-                else:
+                row, why = _json_line(raw)
+                if why is None:
                     why = check_row(row)
                     if why is None:
                         rows.append(row)
@@ -298,15 +293,24 @@ def read_environments(log: Path) -> list[dict[str, Any]]:
     for n, raw in enumerate(log.read_bytes().splitlines(), 1):
         if not raw.strip():
             continue
-        try:
-            line = json.loads(raw.decode("utf-8"))
-        except (UnicodeDecodeError, ValueError, RecursionError):
-            line = None
-        if not isinstance(line, dict):
+        line, why = _json_line(raw)
+        if why is not None or not isinstance(line, dict):
             warnings.warn(f"{log}:{n}: skipped, not a run's record (a JSON object)", StoreWarning, stacklevel=2)
             continue
         out.append(line)
     return out
+
+
+def _json_line(raw: bytes) -> tuple[Any, str | None]:
+    """One line of a JSON-lines file decoded: (value, None), or (None, why it is not one)."""
+    try:
+        return json.loads(raw.decode("utf-8")), None
+    except UnicodeDecodeError:
+        return None, "not UTF-8 text"
+    except json.JSONDecodeError:
+        return None, "not valid JSON (cut short by an interruption?)"
+    except (ValueError, RecursionError):  # an integer too long, nesting too deep
+        return None, "not readable JSON (too long a number or too deep)"
 
 
 def _write_new(df: pd.DataFrame, folder: Path, name: str) -> Path:

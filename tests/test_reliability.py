@@ -181,6 +181,8 @@ def test_a_failed_first_reset_does_not_break_the_env():
         b'{"planner": "quick", "case_id": "x", "success": "yes"}',
         b"\xff\xfe{}",
         b'{"planner": "quick", "case_id": "case0',
+        b"[" * 100_000 + b"]" * 100_000,  # nested past the parser's depth
+        b"[" + b"9" * 5_000 + b"]",  # an integer too long to convert
     ],
 )
 def test_journal_damage_is_reported_skipped_and_kept_aside(tmp_path, line):
