@@ -73,7 +73,20 @@ def layouts_from(paths: list[str], types: list[str] | None, vehicle: str | None 
 
 class _Pairs(tuple):
     """A JSON object of a case file as its (key, value) pairs: hashable, so that a file's
-    repeated cases are one object in memory and are built once."""
+    repeated cases are one object in memory and are built once. Equal only with the same
+    types too: ``true`` must not pass for an equal ``1`` (nor ``1`` for ``1.0``'s row)."""
+
+    def _typed(self) -> tuple:
+        return tuple((k, type(v), v) for k, v in self)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _Pairs) and self._typed() == other._typed()
+
+    def __ne__(self, other: object) -> bool:
+        return not self == other
+
+    def __hash__(self) -> int:
+        return hash(self._typed())
 
 
 def load_case_file(path: str | Path) -> list[Scenario]:

@@ -498,3 +498,11 @@ def test_the_command_line_run_in_process_hands_back_the_callers_hooks(tmp_path, 
     finally:
         warnings.showwarning = before_show
         signal.signal(signal.SIGTERM, before_term)
+
+
+def test_a_repeated_row_is_the_same_only_with_the_same_types(tmp_path):
+    """Rows are built once per distinct row, and ``true`` is not the row of an equal ``1``."""
+    row = dict(zip(CASE_FIELDS, ["reverse", 6, 4.82, 2.3, 1, 2.5]))
+    path = _cases(tmp_path, json.dumps([row, {**row, "theta0_deg": True}]), "typed.json")
+    with pytest.raises(ValueError, match=r"case 2: theta0_deg: expected a number or a name, got True"):
+        load_case_file(path)
