@@ -6,7 +6,7 @@ net, far above any call they make (the longest in the committed full-grid rows: 
 It uses ``SIGALRM``, so it acts in the main thread of a POSIX process (each worker's, or
 the command's with one worker) and stops Python code and sleeps; a call stuck inside
 compiled code that never returns to Python is not stopped (kill its worker: the run then
-names the case, ``runner.WorkerDied``).
+names the case, ``pool.WorkerDied``).
 """
 
 from __future__ import annotations

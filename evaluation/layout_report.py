@@ -126,7 +126,7 @@ def write_trajectory(row: pd.Series, layout: Layout, path: Path) -> Path | None:
 def _file_stem(name: str, used: set[str]) -> str:
     """A file name for a layout's figure inside the report's folder, whatever its name holds
     (``../x``, ``a/b``, ``#``): letters, digits, ``.``, ``-`` and ``_`` only, unique among ``used``."""
-    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._")[:120] or "layout"  # within any file system's 255
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "layout"
     unique, n = stem, 1
     while unique in used:
         n += 1

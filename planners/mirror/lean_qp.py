@@ -24,7 +24,8 @@ def lean(qp: QP) -> tuple[QP, np.ndarray | None]:
     """``qp`` without its switched-off rows (lower bound ``INACTIVE``, no upper) and, where
     ``qp.row_slacks``, their slack variables; and the kept variables' indices (None: ``qp``
     itself). Each dropped slack is 0 at the optimum, so the optimum is the same; the QP piqp
-    factorises shrinks by two variables' worth a row (measured: 31 % less solve time)."""
+    factorises shrinks by two variables' worth a row (measured: set-up and solve 2.71 -> 2.03 ms
+    at the median on 51 QPs of three cases, the cut included)."""
     off = (qp.h_l <= INACTIVE) & np.isinf(qp.h_u)
     if not off.any():
         return qp, None
