@@ -1,4 +1,4 @@
-"""The cost to go (``planners/mirror/cost_to_go.py``) and the strategy that aims and compares by it (``mirror``)."""
+"""The cost to go (``planners/common/cost_to_go.py``) and the strategy that aims and compares by it (``mirror``)."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario
 from planners.base import run_episode
 from planners.common.clearance import gaps
+from planners.common.cost_to_go import CostToGo, CostToGoConfig
 from planners.common.path import arc
 from planners.mirror.config import AimedConfig
-from planners.mirror.cost_to_go import CostToGo, CostToGoConfig
 from planners.mirror.planner import MirrorPlanner
 from planners.mirror.policy import MirrorPolicy
 from planners.mirror.presets import preset_config
@@ -316,7 +316,7 @@ def test_compiled_resampling_of_moves_equals_the_numpy_form_bit_for_bit():
     """``cost_to_go_search._between`` (compiled, all moves at once) gives exactly the poses of the
     numpy arc formula move by move: arcs either way in both gears, straights, headings
     that differ by less than the straight threshold, and zero-length moves."""
-    from planners.mirror.cost_to_go_search import _between
+    from planners.common.cost_to_go_search import _between
 
     rng = np.random.default_rng(5)
     m = 400
@@ -388,7 +388,7 @@ def test_a_join_to_v_s_way_turns_the_short_way_and_ends_on_the_way_s_pose():
     """A cell's stored heading may differ from the car's by a full turn (22 of 554 joins on
     every 25th standard case): the join's headings turn the short way, and its last pose is
     the way's own, so the way goes on from it as stored."""
-    from planners.mirror.cost_to_go import _straight
+    from planners.common.cost_to_go import _straight
 
     a = np.array([0.0, 0.0, math.pi - 0.05])
     b = np.array([-0.29, 0.01, -math.pi + 0.05])  # 0.1 rad on, written a turn lower
@@ -404,7 +404,7 @@ def test_v_covers_a_start_beyond_the_road_and_a_slot_shares_one_v_among_starts_i
     from dataclasses import replace
 
     from mirrorpark_env.vehicle import VehicleState
-    from planners.mirror.cost_to_go import cost_to_go, lattice_box
+    from planners.common.cost_to_go import cost_to_go, lattice_box
 
     g = Scenario.from_case_id("reverse_rw7.00_sl4.82_sw2.32_th+40_y3.00").build()
     cfg = CostToGoConfig()

@@ -15,9 +15,10 @@ import pytest
 
 from evaluation import registry
 from mirrorpark_env.scenario import Scenario
+from planners.common import cost_to_go_config as price_of
+from planners.common.cost_to_go import CostToGo
 from planners.mirror import cost
 from planners.mirror.config import CostToGoConfig, GuideConfig, PriceConfig
-from planners.mirror.cost_to_go import CostToGo
 from planners.mirror.guide import GuideSearch
 from planners.mirror.presets import PRESETS, preset_config, strategy_for
 
@@ -99,8 +100,9 @@ WEIGHTS = (
 
 
 def test_the_prices_weights_are_read_in_cost_py_alone():
-    """Every ranking goes through ``cost.py``: the weights' names appear in cost.py (which
-    prices) and config.py (which holds them) only, so no module prices a path by its own sum."""
+    """Every ranking goes through ``cost.py`` and the price functions it shares with the cost
+    to go (``common/cost_to_go_config.py``): the weights' names appear in cost.py and config.py
+    only, so no module of the planner prices a path by its own sum."""
     found = {}
     for name, tree in SOURCES.items():
         if name in ("cost.py", "config.py"):
@@ -119,20 +121,20 @@ def test_a_paths_price_worked_by_hand():
     4 + 2 (1 + 0.5) + 3 = 10 m, and the penetration 100 x 0.02 = 2 m more."""
     price = PriceConfig()
     ds = np.array([4.0, 2.0])
-    assert cost.path_price(price, ds, np.array([False, True]), 1) == pytest.approx(10.0)
+    assert price_of.path_price(price, ds, np.array([False, True]), 1) == pytest.approx(10.0)
     assert cost.penetration_price(price, np.array([0.01, -0.5, 0.01])) == pytest.approx(2.0)
     real = np.array([[0, 0, 0, 1.0], [4, 0, 0, 1.0], [2, 0, 0, -1.0]])
     assert cost.plan_price(price, real, 1, 5.0) == pytest.approx(15.0)
-    assert cost.move_cost(price, 2.0, reverse=True, steered=True) == pytest.approx(2.0 * 1.55)
+    assert price_of.move_cost(price, 2.0, reverse=True, steered=True) == pytest.approx(2.0 * 1.55)
 
 
 def test_the_lattice_and_the_guide_price_by_cost_py():
-    """The cost to go's moves and the guide's paths cost what ``cost.py`` says under their price."""
+    """The cost to go's moves and the guide's paths cost what the price functions say under their price."""
     g = Scenario.from_case_id("reverse_rw6.00_sl4.82_sw2.32_th+40_y3.00").build()
     price = PriceConfig(reverse_cost=0.7, steer_cost=0.1, switch_cost=4.0)
     V = CostToGo(g, CostToGoConfig(headings=72, in_slot_arcs=0, entry_length=0, price=price))
     for p, (gear, kappa) in enumerate(zip(V.gear, V.kappa)):
-        assert V.cost[p] == cost.move_cost(price, V.step, gear < 0, kappa != 0.0)
+        assert V.cost[p] == price_of.move_cost(price, V.step, gear < 0, kappa != 0.0)
     search = GuideSearch(g, GuideConfig(price=price))
     back = np.array([[2.0 - x, 3.0, 0.0] for x in np.arange(0.0, 2.01, 0.1)])  # 2 m straight back
     assert search._cost(back, gear=1) == pytest.approx(2.0 * 1.7 + 4.0)  # reversed, after a switch

@@ -38,7 +38,8 @@ from mirrorpark_env.criteria import SuccessCriteria
 from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import footprint
 
-from .config import CoreConfig, CostToGoConfig, PriceConfig
+from ..common.cost_to_go_config import CostToGoConfig, PriceConfig, path_price
+from .config import CoreConfig
 from .frames import XI_A, XI_TH, XI_X, XI_Y
 from .solvers import CscPattern
 from .variables import iu, ix, switch_index, x_index
@@ -169,31 +170,6 @@ def slack_weights(cfg: CoreConfig, n: int) -> np.ndarray:
 
 
 # -- the price of driving, in metres ---------------------------------------------------
-def move_cost(price: PriceConfig, length: float, reverse: bool, steered: bool) -> float:
-    """A move of ``length`` metres, reversed or not, at full lock or straight."""
-    return length * (1.0 + (price.reverse_cost if reverse else 0.0) + (price.steer_cost if steered else 0.0))
-
-
-def driven_metres(price: PriceConfig, ds: np.ndarray, reverse: np.ndarray) -> np.ndarray:
-    """Each step's priced length: ``ds`` metres, those where ``reverse`` at 1 + ``reverse_cost``."""
-    return ds * np.where(reverse, 1.0 + price.reverse_cost, 1.0)
-
-
-def steering_cost(price: PriceConfig, fraction: np.ndarray | float, length: np.ndarray | float):
-    """Extra for ``length`` metres turned at ``fraction`` of full lock."""
-    return price.steer_cost * fraction * length
-
-
-def switch_price(price: PriceConfig, switches):
-    """``switches`` direction switches (a count, or counts)."""
-    return price.switch_cost * switches
-
-
-def path_price(price: PriceConfig, ds: np.ndarray, reverse: np.ndarray, switches: int) -> float:
-    """Steps of ``ds`` metres (reversed where ``reverse``) through ``switches`` switches."""
-    return float(ds.sum()) + price.reverse_cost * float(ds[reverse].sum()) + price.switch_cost * switches
-
-
 def plan_price(price: PriceConfig, real: np.ndarray, switches: int, end_value: float) -> float:
     """J, by which the cost-to-go strategy compares optimised plans: the states' (x, y,
     theta, v, ...) path, reversed where v < 0, through ``switches``, plus the cost to go

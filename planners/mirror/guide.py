@@ -28,12 +28,12 @@ from mirrorpark_env.scenario import ParkingType, ScenarioGeometry
 
 from ..common import reeds_shepp
 from ..common.clearance import gaps, required_gap
+from ..common.cost_to_go_config import path_price
 from ..common.path import Path, arc
 from ..common.reeds_shepp import ReedsShepp
 from ..common.slot_cache import SlotCache
 from ..common.turns import turn_chains
 from .config import GuideConfig
-from .cost import path_price
 from .mirror_line import parallel_dark_point
 
 

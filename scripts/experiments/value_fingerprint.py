@@ -15,7 +15,7 @@ import numpy as np
 
 from evaluation.cases import from_sample
 from evaluation.runner import worker_env
-from planners.mirror.cost_to_go import CostToGo
+from planners.common.cost_to_go import CostToGo
 
 
 def main() -> None:

@@ -24,12 +24,12 @@ import numpy as np
 from mirrorpark_env.angles import unwrap_near, wrap_angle
 from mirrorpark_env.vehicle import VehicleState
 
+from ...common.cost_to_go import CostToGo, cost_to_go
 from ...common.path import Path
 from ..checks import Start
 from ..config import AimedConfig
 from ..core import PlannerCore
 from ..cost import finish_price, penetration_price, plan_price
-from ..cost_to_go import CostToGo, cost_to_go
 from ..guide import Guide
 from ..mirror_line import MirrorLine
 from ..plans import Candidate, Plan, Tally

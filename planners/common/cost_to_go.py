@@ -23,13 +23,12 @@ import numpy as np
 
 from mirrorpark_env.scenario import ScenarioGeometry
 
-from ..common.clearance import gap_kernel, gaps
-from ..common.path import arc
-from ..common.slot_cache import SlotCache
-from ..common.turns import turn_chains
-from .config import CostToGoConfig
-from .cost import driven_metres, move_cost, steering_cost, switch_price
+from .clearance import gap_kernel, gaps
+from .cost_to_go_config import CostToGoConfig, driven_metres, move_cost, steering_cost, switch_price
 from .cost_to_go_search import _ahead, _between, _entry_rows, _first_gear, _search, _straight
+from .path import arc
+from .slot_cache import SlotCache
+from .turns import turn_chains
 
 
 class CostToGo:

@@ -10,7 +10,7 @@ from numba import njit
 
 from mirrorpark_env.angles import wrap_angle
 
-from ..common.kernels import _clear
+from .kernels import _clear
 
 
 @njit(cache=True)
