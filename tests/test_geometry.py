@@ -91,14 +91,16 @@ def test_compiled_gaps_equal_the_checker_bit_for_bit(sc):
 
 @pytest.mark.parametrize("sc", SCENES, ids=lambda s: s.parking_type.value)
 def test_compiled_single_pose_verdict_equals_the_batch_kernel(sc):
-    """The search loops' ``_clear`` (one pose, early exit) says "clear by c" exactly where
-    ``gaps(..., all_axes=True) >= c``: checked at each pose's own gap and the next float
-    above it, so a verdict that differed by one rounding would fail."""
+    """The search loops' ``_clear`` (one pose, early exit) and ``_clear_far`` (with a broad
+    phase) say "clear by c" exactly where ``gaps(..., all_axes=True) >= c``: checked at each
+    pose's own gap and the next float above it, so a verdict that differed by one rounding
+    would fail."""
     from planners.common.clearance import gap_kernel, gaps
-    from planners.common.kernels import _clear
+    from planners.common.kernels import _clear, _clear_far, broad_phase
 
     g = sc.build()
     args = gap_kernel(g.checker).args
+    far = broad_phase(args[-1])
     rng = np.random.default_rng(12)
     tx, ty, _ = g.target
     n = 30000
@@ -112,3 +114,4 @@ def test_compiled_single_pose_verdict_equals_the_batch_kernel(sc):
         c, s = math.cos(th), math.sin(th)
         for clearance in (gap, np.nextafter(gap, np.inf), 0.05, -0.2):
             assert _clear(x, y, c, s, clearance, *args) == (gap >= clearance)
+            assert _clear_far(x, y, c, s, clearance, *args, *far) == (gap >= clearance)

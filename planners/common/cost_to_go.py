@@ -26,6 +26,7 @@ from mirrorpark_env.scenario import ScenarioGeometry
 from .clearance import gap_kernel, gaps
 from .cost_to_go_config import CostToGoConfig, driven_metres, move_cost, steering_cost, switch_price
 from .cost_to_go_search import _ahead, _between, _entry_rows, _first_gear, _search, _straight
+from .kernels import broad_phase
 from .path import arc
 from .slot_cache import SlotCache
 from .turns import turn_chains
@@ -40,7 +41,17 @@ class CostToGo:
     drivable path, not a chain of snapped cells.
     """
 
-    def __init__(self, geometry: ScenarioGeometry, config: CostToGoConfig | None = None):
+    def __init__(
+        self,
+        geometry: ScenarioGeometry,
+        config: CostToGoConfig | None = None,
+        stop_near=None,
+        stop_rule: tuple[float, float] = (1.0, 0.0),
+    ):
+        """``stop_near``: a pose (x, y, theta); the search stops early once it has settled a
+        cell within one of the pose's and the cost exceeds ``stop_rule[0]`` x that cell's
+        cost + ``stop_rule[1]`` (``bound``): V is exact up to ``bound`` and at least
+        ``bound`` beyond it. None: the whole box (``bound`` inf)."""
         self.g = geometry
         self.cfg = cfg = config or CostToGoConfig()
         res, nh = cfg.xy_resolution, cfg.headings
@@ -66,10 +77,12 @@ class CostToGo:
         self.entry_rows: dict[int, np.ndarray] = {}  # state -> its entry's path (``_entries``)
         sources, source_pose, source_v = self._sources()
         grid = np.array([res, self.dth, tx, ty, tth, self.i0, self.j0, self.nx, self.ny, nh], float)
-        fast = gap_kernel(geometry.checker)
-        self.V, self.P, self.next, peak = _search(
+        args = gap_kernel(geometry.checker).args
+        args = (*args, *broad_phase(args[-1]))
+        stop = self._near(stop_near) if stop_near is not None else np.zeros(0, np.int64)
+        self.V, self.P, self.next, peak, self.bound = _search(
             self.kappa, self.gear, self.cost, self.step, grid, sources, source_pose, source_v,
-            switch_price(cfg.price, 1), cfg.clearance, fast.args,
+            switch_price(cfg.price, 1), cfg.clearance, args, stop, np.array(stop_rule, float),
         )  # fmt: skip
         if peak > 2 * self.V.shape[0] + 2 * len(sources) + 16:  # never seen; a wrong V would be silent
             raise RuntimeError(f"CostToGo: the search's heap overflowed ({peak} entries)")
@@ -187,6 +200,19 @@ class CostToGo:
         res = self.cfg.xy_resolution
         tx, ty, tth = self.origin
         return np.array([tx + (self.i0 + i) * res, ty + (self.j0 + j) * res, tth + h * self.dth])
+
+    def _near(self, pose) -> np.ndarray:
+        """The states (sorted) of the cells within one cell of ``pose``'s, each way."""
+        i, j, h, inside = self.index(np.asarray(pose, float)[None, :3])
+        if not inside[0]:
+            return np.zeros(0, np.int64)
+        out = {
+            self._state(ii, jj, (int(h[0]) + dh) % self.nh)
+            for ii in range(max(0, int(i[0]) - 1), min(self.nx, int(i[0]) + 2))
+            for jj in range(max(0, int(j[0]) - 1), min(self.ny, int(j[0]) + 2))
+            for dh in (-1, 0, 1)
+        }
+        return np.array(sorted(out), np.int64)
 
     def _state(self, i, j, h) -> int:
         return int((i * self.ny + j) * self.nh + h)

@@ -10,7 +10,7 @@ from numba import njit
 
 from mirrorpark_env.angles import wrap_angle
 
-from .kernels import _clear
+from .kernels import _clear, _clear_far
 
 
 @njit(cache=True)
@@ -114,7 +114,7 @@ def _entry_rows(tx, ty, tth, radius, ds, max_straight, clearance, gap_args):  # 
 
 @njit(cache=True)
 def _search(
-    kappa, gear, cost, step, grid, sources, source_pose, source_v, per_switch, clearance, gap_args
+    kappa, gear, cost, step, grid, sources, source_pose, source_v, per_switch, clearance, gap_args, stop, stop_rule
 ):  # pragma: no cover - compiled
     """Backward Dijkstra over nodes (cell, gear the car arrived in), each holding the exact
     pose it was reached at (hybrid A*'s rule: a cell keeps its cheapest pose). Moves and
@@ -126,10 +126,16 @@ def _search(
     dth, x0, y0, th0, i0, j0, nx, ny, nh). Returns V (S, 2) by arrival gear (0: reverse,
     1: forward), the poses (S, 2, 3), each node's successor node (2 s + g; -1: a source)
     and the largest heap the search held.
+
+    ``stop``: states (sorted) at which the search may stop early; once the first of them is
+    settled at cost c, it stops when the next cost exceeds the bound ``stop_rule[0] x c +
+    stop_rule[1]``, which it returns (inf: it ran to the end). Dijkstra settles states in
+    order of cost: every V at most the bound is exact, and every state above it (or inf)
+    costs at least the bound.
     """
     res, dth, x0, y0, th0 = grid[0], grid[1], grid[2], grid[3], grid[4]
     i0, j0, nx, ny, nh = int(grid[5]), int(grid[6]), int(grid[7]), int(grid[8]), int(grid[9])
-    front, rear, hw, normals, pmin, pmax, verts = gap_args
+    front, rear, hw, normals, pmin, pmax, verts, cen, rad = gap_args
     S = nx * ny * nh
     V = np.full((S, 2), np.inf)
     P = np.zeros((S, 2, 3), np.float32)
@@ -144,11 +150,18 @@ def _search(
                 V[sources[k], gi] = source_v[k, gi]
                 P[sources[k], gi] = source_pose[k]
                 n = _push(hk, hv, n, source_v[k, gi], sources[k] * 2 + gi)
+    bound = math.inf
     while n > 0:
         key, node, n = _pop(hk, hv, n)
         s2, g2 = node // 2, node % 2
         if key > V[s2, g2]:
             continue  # a stale entry
+        if key > bound:
+            break
+        if bound == math.inf and stop.shape[0] > 0:
+            at = np.searchsorted(stop, s2)
+            if at < stop.shape[0] and stop[at] == s2:
+                bound = stop_rule[0] * key + stop_rule[1]
         px, py, pth = float(P[s2, g2, 0]), float(P[s2, g2, 1]), float(P[s2, g2, 2])
         pc, ps = math.cos(pth), math.sin(pth)
         for p in range(kappa.shape[0]):
@@ -164,23 +177,33 @@ def _search(
             s = (ix * ny + iy) * nh + ih
             if k0 >= V[s, 0] and k0 >= V[s, 1]:
                 continue  # no improvement possible: skip the check
-            if not _clear(qx, qy, qc, qs, clearance, front, rear, hw, normals, pmin, pmax, verts):
+            if not _clear_far(qx, qy, qc, qs, clearance, front, rear, hw, normals, pmin, pmax, verts, cen, rad):
                 continue
             mx, my, _, mc, ms = _arc_cs(px, py, pth, pc, ps, kappa[p], -0.5 * gear[p] * step)
-            if not _clear(mx, my, mc, ms, clearance, front, rear, hw, normals, pmin, pmax, verts):
+            if not _clear_far(mx, my, mc, ms, clearance, front, rear, hw, normals, pmin, pmax, verts, cen, rad):
                 continue
-            for gp in range(2):  # the gear the car arrived at q in: a switch if not p's
-                k = k0 + (per_switch if gp != g2 else 0.0)
-                if k < V[s, gp]:
-                    V[s, gp] = k
-                    P[s, gp, 0], P[s, gp, 1], P[s, gp, 2] = qx, qy, qth
-                    nxt[s, gp] = node
-                    if n >= cap:
-                        peak = cap + 1
-                        continue
-                    n = _push(hk, hv, n, k, s * 2 + gp)
-                    peak = max(peak, n)
-    return V, P, nxt, peak
+            n, peak = _relax(V, P, nxt, hk, hv, n, peak, s, k0, g2, per_switch, qx, qy, qth, node)
+    return V, P, nxt, peak, bound
+
+
+@njit(cache=True)
+def _relax(V, P, nxt, hk, hv, n, peak, s, k0, g2, per_switch, qx, qy, qth, node):  # pragma: no cover - compiled
+    """Lower both arrival columns of state ``s`` reached from ``node`` at ``k0`` (plus a
+    switch where the column's gear is not the move's); (heap size, peak; past the heap's
+    capacity: capacity + 1)."""
+    cap = hk.shape[0]
+    for gp in range(2):  # the gear the car arrived at q in: a switch if not p's
+        k = k0 + (per_switch if gp != g2 else 0.0)
+        if k < V[s, gp]:
+            V[s, gp] = k
+            P[s, gp, 0], P[s, gp, 1], P[s, gp, 2] = qx, qy, qth
+            nxt[s, gp] = node
+            if n >= cap:
+                peak = cap + 1
+                continue
+            n = _push(hk, hv, n, k, s * 2 + gp)
+            peak = max(peak, n)
+    return n, peak
 
 
 @njit(cache=True, nogil=True)

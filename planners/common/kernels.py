@@ -134,6 +134,40 @@ def _clear(x, y, c, s, clearance, front, rear, hw, normals, pmin, pmax, verts): 
     return True
 
 
+@njit(cache=True, nogil=True)
+def _clear_far(x, y, c, s, clearance, front, rear, hw, normals, pmin, pmax, verts, cen, rad):  # pragma: no cover
+    """``_clear``'s verdict bit for bit, with a broad phase: obstacle ``k`` (its vertices
+    within ``rad[k]`` of ``cen[k]``) is passed over where its vertices' projections on the
+    footprint's own axes lie ``clearance`` (and 1e-9 m) clear of the footprint's, so that
+    ``_own_axes``, and with it ``_clear``'s value, is certainly past the clearance. Most of
+    a large lattice is far from most obstacles: the cost to go's search runs on this."""
+    co = 0.5 * (front - rear)
+    hl = 0.5 * (front + rear)
+    ox = co * c + x
+    oy = co * s + y
+    lim = -clearance
+    need = clearance + 1e-9
+    for k in range(normals.shape[0]):
+        dx = cen[k, 0] - ox
+        dy = cen[k, 1] - oy
+        if max(abs(dx * c + dy * s) - hl, abs(dy * c - dx * s) - hw) - rad[k] >= need:
+            continue
+        m = _obstacle_axes(ox, oy, c, s, hl, hw, normals, pmin, pmax, k)
+        if m <= lim:
+            continue
+        if min(m, _own_axes(ox, oy, c, s, hl, hw, verts, k)) > lim:
+            return False
+    return True
+
+
+def broad_phase(verts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(centre (K, 2), radius (K,)) of each obstacle's vertices (K, V, 2), the radius
+    rounded up, for ``_clear_far``."""
+    cen = verts.mean(axis=1)
+    rad = np.sqrt(((verts - cen[:, None, :]) ** 2).sum(axis=2)).max(axis=1)
+    return np.ascontiguousarray(cen), rad * (1 + 1e-12) + 1e-12
+
+
 class FastGaps:
     """``gaps`` for one checker: lower bounds on each pose's distance to the nearest
     obstacle (< 0: overlap), compiled."""

@@ -36,12 +36,21 @@ class SlotCache(Generic[T]):
     def __init__(self, size: int) -> None:
         self.size = size
         self._items: OrderedDict[str, T] = OrderedDict()
+        self.builds = 0  # items built so far (tests count them)
 
-    def get(self, geometry: ScenarioGeometry, settings: object, build: Callable[[], T]) -> T:
+    def get(
+        self,
+        geometry: ScenarioGeometry,
+        settings: object,
+        build: Callable[[], T],
+        serves: Callable[[T], bool] | None = None,
+    ) -> T:
+        """The slot's item, built if missing or if ``serves`` says the one held does not serve."""
         key = geometry_key(geometry, settings)
         item = self._items.get(key)
-        if item is None:
+        if item is None or (serves is not None and not serves(item)):
             item = self._items[key] = build()
+            self.builds += 1
             if len(self._items) > self.size:
                 self._items.popitem(last=False)
         else:

@@ -1,7 +1,12 @@
-"""Heuristics of the hybrid A* search: Reeds-Shepp length and an obstacle-aware 2D distance.
+"""Heuristics of the hybrid A* search: the cost to go that knows the car, the Reeds-Shepp
+length and an obstacle-aware 2D distance.
 
-The search takes the larger of the two (as Dolgov et al. and Autoware do): the
-Reeds-Shepp length ignores obstacles, the 2D distance ignores the car's kinematics.
+The search takes the larger of the Reeds-Shepp length and either the cost to go over
+(x, y, heading) (``CostToGoHeuristic``, the default) or the 2D distance (``GridDistance``,
+Dolgov et al.'s and Autoware's, kept for the ablation). The Reeds-Shepp length ignores
+obstacles and the 2D distance the car's kinematics: neither sees that a car facing away from
+its slot in an aisle about its own length wide must first turn around. The cost to go does:
+it is a shortest path on a lattice of the car's own moves among the obstacles.
 """
 
 from __future__ import annotations
@@ -14,6 +19,11 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from mirrorpark_env.geometry import ConvexSet
+from mirrorpark_env.scenario import ScenarioGeometry
+
+from ..common.cost_to_go import CostToGo, lattice_box
+from ..common.cost_to_go_config import CostToGoConfig
+from ..common.slot_cache import SlotCache
 
 OCTILE = 1.0 / math.cos(math.pi / 8)  # worst ratio of 8-connected to straight distance
 
@@ -76,3 +86,51 @@ class GridDistance:
         """
         d = self.dist[self._cell(x, y)]
         return max(0.0, d / OCTILE - 0.71 * self.res) if math.isfinite(d) else math.inf
+
+
+_CACHE: SlotCache[CostToGo] = SlotCache(8)
+
+
+class CostToGoHeuristic:
+    """V(x, y, heading) arrived in a gear, from the cost to go shared with the mirror planner
+    (``planners/common/cost_to_go.py``), priced in the search's own costs.
+
+    V is a lattice's shortest path (moves of full lock or straight, 5 deg heading cells), so
+    it may exceed the cheapest path a finer search finds: it is an estimate, not a bound
+    (its measured inflation: docs/hybrid_astar.md, tests/test_hybrid_heuristic.py).
+
+    Built once per slot and kept for the process's later calls (``_CACHE``), it is built only
+    as far as the search needs it: its Dijkstra stops at ``rule[0]`` x V(start) + ``rule[1]``
+    (``CostToGo.bound``), beyond which it reads the bound (V is at least that there). A call
+    from a start beyond the bound builds it again for that start. Where the lattice finds no
+    way at all (inf), the caller falls back to a 2D distance.
+    """
+
+    def __init__(self, geometry: ScenarioGeometry, config: CostToGoConfig, start, rule: tuple[float, float]) -> None:
+        settings = (config.model_dump_json(), lattice_box(geometry, config), rule)
+        self.V = V = _CACHE.get(
+            geometry, settings, lambda: CostToGo(geometry, config, stop_near=start, stop_rule=rule), self._serves(start)
+        )
+        self.table, self.bound = V.V, V.bound
+        self.res, self.dth, self.nh, self.ny, self.nx = V.cfg.xy_resolution, V.dth, V.nh, V.ny, V.nx
+        self.tx, self.ty, self.tth = V.origin
+        self.i0, self.j0 = V.i0, V.j0
+
+    @staticmethod
+    def _serves(start):
+        """Whether a V already built knows V exactly at ``start`` (or has no bound)."""
+        return lambda V: V.bound == math.inf or V.at(start)[0] <= V.bound
+
+    def __call__(self, x: float, y: float, th: float, gear: int) -> float:
+        """V at the pose, arrived in ``gear`` (+1, -1; 0: standing, either); beyond the bound,
+        the bound; inf where the lattice finds no way."""
+        i = math.floor((x - self.tx) / self.res + 0.5) - self.i0
+        j = math.floor((y - self.ty) / self.res + 0.5) - self.j0
+        if not (0 <= i < self.nx and 0 <= j < self.ny):
+            return self.bound
+        h = math.floor((th - self.tth) / self.dth + 0.5) % self.nh
+        row = self.table[(i * self.ny + j) * self.nh + h]
+        v = min(row[0], row[1]) if gear == 0 else row[1 if gear > 0 else 0]
+        if v == math.inf:
+            v = self.V.at((x, y, th), gear or None)[0]  # the lowest of its neighbours
+        return float(v) if v <= self.bound else self.bound

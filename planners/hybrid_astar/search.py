@@ -19,6 +19,7 @@ import heapq
 import math
 import time
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -30,9 +31,10 @@ from mirrorpark_env.scenario import ScenarioGeometry
 
 from ..base import PlanStats
 from ..common.clearance import gaps, required_gap
+from ..common.cost_to_go_config import CostToGoConfig, PriceConfig
 from ..common.path import Path, arc
 from ..common.reeds_shepp import ReedsShepp
-from .heuristic import GridDistance
+from .heuristic import CostToGoHeuristic, GridDistance
 
 
 class HybridAStarConfig(StrictModel):
@@ -57,11 +59,19 @@ class HybridAStarConfig(StrictModel):
     # turn away from it, and its far corner first swings closer.
     start_relief: float = Field(2.5, gt=0, le=10)
     start_gap_share: float = Field(0.5, ge=0.5, le=1)
-    reverse_cost: float = Field(1.5, ge=0)  # per metre reversed (forward: 1)
+    reverse_cost: float = Field(1.5, ge=1)  # per metre reversed (forward: 1)
     switch_cost: float = Field(2.0, ge=0)  # per direction switch
     steer_cost: float = Field(0.2, ge=0)  # per metre, times |steer| / max steer
     steer_change_cost: float = Field(0.5, ge=0)  # per change of steering between primitives, times |change| / max
     heuristic_weight: float = Field(2.0, ge=1, le=100)  # > 1: greedy, not optimal (docs/hybrid_astar.md)
+    # The forward search's estimate besides the Reeds-Shepp length: the cost to go over
+    # (x, y, heading) that knows the car ("cost_to_go"), or the 2D grid distance ("grid", the
+    # ablation). The lattice's price is the search's own (its ``price`` field is replaced).
+    heuristic: Literal["cost_to_go", "grid"] = "cost_to_go"
+    lattice: CostToGoConfig = CostToGoConfig(xy_resolution=0.3, entry_length=0.0)
+    first: Literal["backward", "forward"] = "backward"  # which search spends its share of the budget first
+    # The cost to go is built as far as this x V(start) + this many metres (``CostToGoHeuristic``)
+    lattice_stop: tuple[float, float] = (1.25, 5.0)
     analytic_every: int = Field(2, ge=1)  # try a Reeds-Shepp connection every k-th expansion
     backward_share: float = Field(0.5, ge=0, le=1)  # of the budget, for the search out of the slot
     grid_resolution: float = Field(0.25, gt=0, le=5)
@@ -118,6 +128,9 @@ class HybridAStar:
         self.goal_heading = math.radians(cfg.goal_heading_deg)
         self._primitives = self._make_primitives()
         self._grids: dict[tuple, GridDistance] = {}
+        price = PriceConfig(reverse_cost=cfg.reverse_cost - 1.0, steer_cost=cfg.steer_cost, switch_cost=cfg.switch_cost)
+        self.lattice = cfg.lattice.model_copy(update={"price": price})
+        self.car_heuristic: CostToGoHeuristic | None = None  # built by the first call that needs it
         # With ``keep_trees``, (backward, nodes) of the last call's searches, for figures.
         self.keep_trees = keep_trees
         self.last_trees: list[tuple[bool, list[_Node]]] = []
@@ -259,15 +272,21 @@ class HybridAStar:
         if not self.goal_exists:
             return done(None, "no_goal")
         deadline = t0 + cfg.wall_clock_limit_s
-        limit = max(1, int(cfg.backward_share * cfg.max_expansions))
-        poses, status, cost = self._search(self.goal, start, True, limit, deadline, counts)
-        if poses is not None:
-            return done(Path.from_poses(poses[::-1]), "ok", cost, "backward")
-        if status == "wall_clock":
-            return done(None, status)
-        poses, status, cost = self._search(start, self.goal, False, cfg.max_expansions, deadline, counts)
-        if poses is not None:
-            return done(Path.from_poses(poses), "ok", cost, "forward")
+        share = max(1, int(cfg.backward_share * cfg.max_expansions))
+        if cfg.first == "backward":
+            order, limits = (True, False), (share, cfg.max_expansions)
+        else:
+            order, limits = (False, True), (cfg.max_expansions - share, cfg.max_expansions)
+        for backward, limit in zip(order, limits):
+            origin, goal = (self.goal, start) if backward else (start, self.goal)
+            if not backward and cfg.heuristic == "cost_to_go":  # built only where a forward search runs
+                self.car_heuristic = CostToGoHeuristic(self.geometry, self.lattice, start, cfg.lattice_stop)
+            poses, status, cost = self._search(origin, goal, backward, limit, deadline, counts)
+            if poses is not None:
+                path = Path.from_poses(poses[::-1] if backward else poses)
+                return done(path, "ok", cost, "backward" if backward else "forward")
+            if status == "wall_clock":
+                break
         return done(None, status)
 
     def _search(self, origin, goal, backward: bool, limit: int, deadline: float, counts: dict[str, int]):
@@ -278,11 +297,8 @@ class HybridAStar:
         swapped, since the path will be driven the other way.
         """
         cfg = self.cfg
-        grid = self._grid(goal)
+        h = self._heuristic(goal, backward)
         forward_cost, reverse_cost = (cfg.reverse_cost, 1.0) if backward else (1.0, cfg.reverse_cost)
-
-        def h(pose) -> float:
-            return cfg.heuristic_weight * max(self.rs.distance(pose, goal), grid(pose[0], pose[1]))
 
         origin_key = self._key(origin, float(self._gaps(np.array([origin]))[0]))
         nodes: list[_Node] = [_Node(origin, 0.0, -1, 0, 0.0, None, origin_key)]
@@ -346,7 +362,7 @@ class HybridAStar:
                 if g >= best_g.get(child_key, math.inf):
                     continue
                 pose = (float(end[0]), float(end[1]), float(end[2]))
-                hv = h(pose)
+                hv = h(pose, gear)
                 if not math.isfinite(hv):
                     continue
                 best_g[child_key] = g
@@ -354,6 +370,19 @@ class HybridAStar:
                 heapq.heappush(open_heap, (g + hv, len(nodes) - 1, len(nodes) - 1))
         counts["nodes"] += len(nodes)
         return None, status, math.nan
+
+    def _heuristic(self, goal, backward: bool):
+        """h(pose, gear): the weight x the larger of the Reeds-Shepp length to ``goal`` and the
+        cost to go (forward, where it knows a way) or else the 2D grid distance."""
+        grid, car, w = self._grid(goal), None if backward else self.car_heuristic, self.cfg.heuristic_weight
+
+        def h(pose, gear: int = 0) -> float:
+            est = car(pose[0], pose[1], pose[2], gear) if car is not None else math.inf
+            if est == math.inf:
+                est = grid(pose[0], pose[1])
+            return w * max(self.rs.distance(pose, goal), est)
+
+        return h
 
     def _keep_tree(self, backward: bool, nodes: list[_Node]) -> None:
         if self.keep_trees:  # the list grows as the search runs: the figure sees all of it
