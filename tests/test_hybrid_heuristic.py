@@ -18,7 +18,7 @@ from planners.hybrid_astar import heuristic
 from planners.hybrid_astar.heuristic import CostToGoHeuristic
 from planners.hybrid_astar.search import HybridAStar, HybridAStarConfig
 
-OLD = HybridAStarConfig(heuristic="grid", first="backward")  # the search before the cost to go
+OLD = HybridAStarConfig(heuristic="grid", goal_shots=0)  # the search before the cost to go
 # V <= (1 + INFLATION) x the price of the rest of a path the search finds, + EXCESS near the
 # slot, where the lattice's 0.3 m cells reach the mouth only roughly (docs/hybrid_astar.md)
 INFLATION, EXCESS = 0.25, 10.0
@@ -79,11 +79,14 @@ def test_a_start_facing_away_from_an_angled_bay_is_solved_where_the_old_heuristi
     start = turn_around().start
     _, old = HybridAStar(g, OLD).plan(start)
     assert old.status == "budget" and old.iterations == OLD.max_expansions
-    path, new = HybridAStar(g).plan(start)
+    alone = {"goal_shots": 0, "plain_expansions": 0}  # the heuristic alone changed
+    path, new = HybridAStar(g, HybridAStarConfig(**alone)).plan(start)
     share = int(OLD.backward_share * OLD.max_expansions)  # the backward search's, spent first
     assert new.status == "ok" and new.detail["search"] == "forward" and new.iterations <= share + 1_000
-    _, fwd = HybridAStar(g, HybridAStarConfig(first="forward")).plan(start)
+    _, fwd = HybridAStar(g, HybridAStarConfig(first="forward", **alone)).plan(start)
     assert fwd.status == "ok" and fwd.iterations <= 1_000
+    assert HybridAStar(g).plan(start)[1].status == "ok"  # and the default
+    assert HybridAStar(g, HybridAStarConfig(goal_shots=2)).plan(start)[1].status == "ok"
     assert HybridAStar(g).in_goal_set(path.poses[-1])
 
 
@@ -154,3 +157,48 @@ def test_the_cost_to_go_is_built_once_and_rebuilt_only_for_a_start_beyond_its_bo
     assert search.car_heuristic(*far, 0) == bound  # beyond it: V is known to be at least the bound
     CostToGoHeuristic(g, search.lattice, far, search.cfg.lattice_stop)
     assert heuristic._CACHE.builds == before + 2
+
+
+@pytest.mark.parametrize(
+    "case_id",
+    [
+        "parallel_rw4.00_sl5.62_sw2.50_th+0_y1.90",
+        "reverse_rw6.00_sl4.82_sw2.52_th-20_y4.90",
+        "angle_rw4.00_sl4.82_sw2.57_th+0_y2.30",
+    ],
+)
+def test_shots_go_to_poses_of_the_goal_set_along_the_slot(case_id):
+    """The analytic shots' goals: the target first, then poses shifted along its heading, each
+    in the goal set (ISO-valid with the search's margin); a shot from a pose in the aisle ends
+    on one of them."""
+    g = Scenario.from_case_id(case_id).build()
+    search = HybridAStar(g, HybridAStarConfig(goal_shots=2))
+    goals = np.array(search.goal_poses)
+    assert len(goals) == 1 + search.cfg.goal_shots
+    assert tuple(goals[0]) == search.goal
+    x, y, th = search.goal
+    for gx, gy, gth in goals[1:]:
+        assert gth == th and abs(-(gx - x) * math.sin(th) + (gy - y) * math.cos(th)) < 1e-9  # on the axis
+        assert search.in_goal_set((gx, gy, gth)) and math.hypot(gx - x, gy - y) >= 0.025
+    search._start, search._start_gap = (g.start.x, g.start.y, g.start.theta), 1.0
+    search.window = search._window(search._start)
+    tail = search._shot(search._start)
+    if tail is not None:
+        assert any(np.allclose(tail[-1], goal) for goal in goals)
+
+
+def test_the_lattice_covers_a_lot_turned_anywhere_in_the_world():
+    """A generated lot lies turned and shifted in the world: the mirror planner's box (the road
+    beside a grid slot, along x from y = 0) misses its target there, and V would be infinite
+    everywhere; the heuristic's own box (around the slot and the start) holds both."""
+    from mirrorpark_env.lots import generate_lot
+    from mirrorpark_env.vehicle import vehicle_named
+    from planners.common.cost_to_go import lattice_box
+
+    lay = generate_lot(1049, 2, vehicle_named("tpcap"))
+    g = lay.build()
+    cfg = HybridAStar(g).lattice
+    x0, x1, y0, y1 = lattice_box(g, cfg)
+    assert not (x0 <= g.target[0] <= x1 and y0 <= g.target[1] <= y1)
+    h = CostToGoHeuristic(g, cfg, lay.start, HybridAStarConfig().lattice_stop)
+    assert math.isfinite(h(*lay.start, 0)) and h(*lay.start, 0) < h.bound

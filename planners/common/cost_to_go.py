@@ -47,11 +47,13 @@ class CostToGo:
         config: CostToGoConfig | None = None,
         stop_near=None,
         stop_rule: tuple[float, float] = (1.0, 0.0),
+        box: tuple[float, float, float, float] | None = None,
     ):
         """``stop_near``: a pose (x, y, theta); the search stops early once it has settled a
         cell within one of the pose's and the cost exceeds ``stop_rule[0]`` x that cell's
         cost + ``stop_rule[1]`` (``bound``): V is exact up to ``bound`` and at least
-        ``bound`` beyond it. None: the whole box (``bound`` inf)."""
+        ``bound`` beyond it. None: the whole box (``bound`` inf). ``box``: (x0, x1, y0, y1)
+        the lattice covers (None: ``lattice_box``)."""
         self.g = geometry
         self.cfg = cfg = config or CostToGoConfig()
         res, nh = cfg.xy_resolution, cfg.headings
@@ -60,7 +62,7 @@ class CostToGo:
         self.step = radius * self.dth  # a full-lock move turns one heading cell
         tx, ty, tth = (float(v) for v in geometry.target)
         self.origin = (tx, ty, tth)
-        x0, x1, y0, y1 = lattice_box(geometry, cfg)
+        x0, x1, y0, y1 = box or lattice_box(geometry, cfg)
         self.i0 = math.floor((x0 - tx) / res)
         self.j0 = math.floor((y0 - ty) / res)
         self.nx = math.floor((x1 - tx) / res) - self.i0 + 1

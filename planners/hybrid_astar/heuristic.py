@@ -15,13 +15,14 @@ import math
 
 import numpy as np
 import shapely
+from numba import njit
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from mirrorpark_env.geometry import ConvexSet
 from mirrorpark_env.scenario import ScenarioGeometry
 
-from ..common.cost_to_go import CostToGo, lattice_box
+from ..common.cost_to_go import CostToGo
 from ..common.cost_to_go_config import CostToGoConfig
 from ..common.slot_cache import SlotCache
 
@@ -91,6 +92,19 @@ class GridDistance:
 _CACHE: SlotCache[CostToGo] = SlotCache(8)
 
 
+def scene_box(geometry: ScenarioGeometry, config: CostToGoConfig) -> tuple[float, float, float, float]:
+    """(x0, x1, y0, y1) the heuristic's lattice covers: the slot (or the target) and
+    ``margin`` around it, and the episode's start and ``start_margin`` around it, within the
+    scene's bounds. Unlike ``lattice_box`` (the road beside a grid slot, the mirror
+    planner's) it assumes no road along x: a generated lot lies turned anywhere in the world."""
+    pts = np.asarray(geometry.slot, float) if geometry.slot is not None else np.asarray(geometry.target[:2])[None]
+    lo, hi = pts.min(axis=0) - config.margin, pts.max(axis=0) + config.margin
+    s, m = np.array([geometry.start.x, geometry.start.y]), config.start_margin
+    lo, hi = np.minimum(lo, s - m), np.maximum(hi, s + m)
+    bx0, bx1, by0, by1 = geometry.bounds
+    return (max(bx0, float(lo[0])), min(bx1, float(hi[0])), max(by0, float(lo[1])), min(by1, float(hi[1])))
+
+
 class CostToGoHeuristic:
     """V(x, y, heading) arrived in a gear, from the cost to go shared with the mirror planner
     (``planners/common/cost_to_go.py``), priced in the search's own costs.
@@ -107,9 +121,13 @@ class CostToGoHeuristic:
     """
 
     def __init__(self, geometry: ScenarioGeometry, config: CostToGoConfig, start, rule: tuple[float, float]) -> None:
-        settings = (config.model_dump_json(), lattice_box(geometry, config), rule)
+        box = scene_box(geometry, config)
+        settings = (config.model_dump_json(), box, rule)
         self.V = V = _CACHE.get(
-            geometry, settings, lambda: CostToGo(geometry, config, stop_near=start, stop_rule=rule), self._serves(start)
+            geometry,
+            settings,
+            lambda: CostToGo(geometry, config, stop_near=start, stop_rule=rule, box=box),
+            self._serves(start),
         )
         self.table, self.bound = V.V, V.bound
         self.res, self.dth, self.nh, self.ny, self.nx = V.cfg.xy_resolution, V.dth, V.nh, V.ny, V.nx
@@ -129,8 +147,27 @@ class CostToGoHeuristic:
         if not (0 <= i < self.nx and 0 <= j < self.ny):
             return self.bound
         h = math.floor((th - self.tth) / self.dth + 0.5) % self.nh
-        row = self.table[(i * self.ny + j) * self.nh + h]
-        v = min(row[0], row[1]) if gear == 0 else row[1 if gear > 0 else 0]
-        if v == math.inf:
-            v = self.V.at((x, y, th), gear or None)[0]  # the lowest of its neighbours
+        v = _read(self.table, i, j, h, gear, self.ny, self.nx, self.nh)
         return float(v) if v <= self.bound else self.bound
+
+
+@njit(cache=True)
+def _read(table, i, j, h, gear, ny, nx, nh):  # pragma: no cover - compiled
+    """``CostToGo.at``'s value at cell (i, j, h) arrived in ``gear`` (0: either): its own
+    cell's, or where that is inf the lowest of its neighbours (one cell each way)."""
+    lo, hi = (0, 1) if gear == 0 else ((1, 1) if gear > 0 else (0, 0))
+    best = math.inf
+    for c in range(lo, hi + 1):
+        best = min(best, table[(i * ny + j) * nh + h, c])
+    if best < math.inf:
+        return best
+    for di in (0, -1, 1):
+        for dj in (0, -1, 1):
+            ii, jj = i + di, j + dj
+            if ii < 0 or ii >= nx or jj < 0 or jj >= ny:
+                continue
+            for dh in (0, -1, 1):
+                s = (ii * ny + jj) * nh + (h + dh) % nh
+                for c in range(lo, hi + 1):
+                    best = min(best, table[s, c])
+    return best

@@ -72,11 +72,18 @@ class HybridAStarConfig(StrictModel):
     first: Literal["backward", "forward"] = "backward"  # which search spends its share of the budget first
     # The cost to go is built as far as this x V(start) + this many metres (``CostToGoHeuristic``)
     lattice_stop: tuple[float, float] = (1.25, 5.0)
+    # ... and takes over from the grid distance after this many forward expansions: a forward
+    # search that finds its way at once keeps its paths, one that stalls is steered by it
+    plain_expansions: int = Field(1_000, ge=0)
     analytic_every: int = Field(2, ge=1)  # try a Reeds-Shepp connection every k-th expansion
     backward_share: float = Field(0.5, ge=0, le=1)  # of the budget, for the search out of the slot
     grid_resolution: float = Field(0.25, gt=0, le=5)
     goal_margin: float = Field(0.05, ge=0, le=1)  # ISO margins plus this, for the goal set
     goal_heading_deg: float = Field(2.0, ge=0, le=45)
+    # Analytic shots go to the target and to up to this many more poses of the goal set: the
+    # target shifted along the slot's axis, as far as the ISO check (with ``goal_margin``) allows
+    goal_shots: int = Field(0, ge=0, le=20)  # 0: the target alone (2 gained nothing measured: docs)
+    goal_shot_range: float = Field(8.0, ge=0, le=100)  # [m] ... from nodes this near the target (Reeds-Shepp)
     window_margin: float = Field(10.0, gt=0, le=100)  # search window beyond the slot and start
     max_expansions: int = Field(9_000, ge=1)  # the budget, in work: node expansions per call (~1 s here)
     wall_clock_limit_s: float = Field(120.0, gt=0, le=3600)  # a safety net only; a call where it fires says so
@@ -137,6 +144,7 @@ class HybridAStar:
         # The slot's centre has the largest margins a pose in it can have: if the ISO check
         # fails there, no pose in the slot passes (a slot narrower than the car plus margins).
         self.goal_exists = self.criteria.verdict(*self.goal, 0.0, 0.0, False).failed is None
+        self.goal_poses = self._goal_poses() if self.goal_exists else [self.goal]
 
     # -- primitives and checks ----------------------------------------------------------
     def _make_primitives(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -185,6 +193,38 @@ class HybridAStar:
             return False
         need = self.criteria.min_margin + self.cfg.goal_margin
         return min(v.margins.values()) >= need
+
+    def _goal_poses(self) -> list[tuple[float, float, float]]:
+        """The target, then up to ``goal_shots`` poses of the goal set along the slot's axis:
+        halfway to the farthest each way that passes ``in_goal_set`` (1 cm steps up to
+        1.5 m), then those farthest."""
+        x, y, th = self.goal
+        c, s = math.cos(th), math.sin(th)
+        ends = []
+        for sign in (1.0, -1.0):
+            last = 0.0
+            for k in range(1, 151):
+                if not self.in_goal_set((x + sign * 0.01 * k * c, y + sign * 0.01 * k * s, th)):
+                    break
+                last = 0.01 * k
+            if last >= 0.05:
+                ends.append(sign * last)
+        offsets = [0.5 * e for e in ends] + ends
+        return [self.goal] + [(x + d * c, y + d * s, th) for d in offsets[: self.cfg.goal_shots]]
+
+    def _shot(self, pose) -> np.ndarray | None:
+        """A clear Reeds-Shepp path from ``pose`` into the goal set: to the target, else (from
+        within ``goal_shot_range`` of it) to the other goal poses, nearest first."""
+        tail = self._analytic(pose, self.goal)
+        if tail is not None or len(self.goal_poses) == 1:
+            return tail
+        if self.rs.distance(pose, self.goal) > self.cfg.goal_shot_range:
+            return None
+        for goal in sorted(self.goal_poses[1:], key=lambda g: self.rs.distance(pose, g)):
+            tail = self._analytic(pose, goal)
+            if tail is not None:
+                return tail
+        return None
 
     def _analytic(self, pose, goal) -> np.ndarray | None:
         """A clear Reeds-Shepp path from ``pose`` to ``goal``, or None."""
@@ -279,8 +319,6 @@ class HybridAStar:
             order, limits = (False, True), (cfg.max_expansions - share, cfg.max_expansions)
         for backward, limit in zip(order, limits):
             origin, goal = (self.goal, start) if backward else (start, self.goal)
-            if not backward and cfg.heuristic == "cost_to_go":  # built only where a forward search runs
-                self.car_heuristic = CostToGoHeuristic(self.geometry, self.lattice, start, cfg.lattice_stop)
             poses, status, cost = self._search(origin, goal, backward, limit, deadline, counts)
             if poses is not None:
                 path = Path.from_poses(poses[::-1] if backward else poses)
@@ -297,7 +335,10 @@ class HybridAStar:
         swapped, since the path will be driven the other way.
         """
         cfg = self.cfg
-        h = self._heuristic(goal, backward)
+        h = self._heuristic(goal, None)
+        # Forward, after ``plain_expansions`` the cost to go takes over (built then, if not yet)
+        sharpen = not backward and cfg.heuristic == "cost_to_go"
+        sharpen_at = counts["expansions"] + cfg.plain_expansions if sharpen else -1
         forward_cost, reverse_cost = (cfg.reverse_cost, 1.0) if backward else (1.0, cfg.reverse_cost)
 
         origin_key = self._key(origin, float(self._gaps(np.array([origin]))[0]))
@@ -315,6 +356,8 @@ class HybridAStar:
             if time.perf_counter() > deadline:
                 status = "wall_clock"
                 break
+            if counts["expansions"] == sharpen_at:
+                h, open_heap = self._sharpen(origin, goal, nodes, open_heap)
             _, _, i = heapq.heappop(open_heap)
             node = nodes[i]
             key = node.key
@@ -326,7 +369,7 @@ class HybridAStar:
                 counts["nodes"] += len(nodes)
                 return self._trace(nodes, i, None), "ok", node.g
             if (len(closed) - 1) % cfg.analytic_every == 0:
-                tail = self._analytic(node.pose, goal)
+                tail = self._analytic(node.pose, goal) if backward else self._shot(node.pose)
                 if tail is not None:
                     counts["nodes"] += len(nodes)
                     return self._trace(nodes, i, tail), "ok", node.g
@@ -371,10 +414,23 @@ class HybridAStar:
         counts["nodes"] += len(nodes)
         return None, status, math.nan
 
-    def _heuristic(self, goal, backward: bool):
-        """h(pose, gear): the weight x the larger of the Reeds-Shepp length to ``goal`` and the
-        cost to go (forward, where it knows a way) or else the 2D grid distance."""
-        grid, car, w = self._grid(goal), None if backward else self.car_heuristic, self.cfg.heuristic_weight
+    def _sharpen(self, start, goal, nodes: list[_Node], open_heap: list):
+        """The cost to go's h, and the open nodes ranked by it (``CostToGoHeuristic``, built
+        here by the call that first needs it: a call that ends before builds nothing)."""
+        self.car_heuristic = CostToGoHeuristic(self.geometry, self.lattice, start, self.cfg.lattice_stop)
+        h = self._heuristic(goal, self.car_heuristic)
+        ranked = []
+        for _, tie, i in open_heap:
+            hv = h(nodes[i].pose, nodes[i].gear)
+            if math.isfinite(hv):
+                ranked.append((nodes[i].g + hv, tie, i))
+        heapq.heapify(ranked)
+        return h, ranked
+
+    def _heuristic(self, goal, car: CostToGoHeuristic | None):
+        """h(pose, gear): the weight x the larger of the Reeds-Shepp length to ``goal`` and
+        ``car``'s cost to go (where it knows a way) or else the 2D grid distance."""
+        grid, w = self._grid(goal), self.cfg.heuristic_weight
 
         def h(pose, gear: int = 0) -> float:
             est = car(pose[0], pose[1], pose[2], gear) if car is not None else math.inf
