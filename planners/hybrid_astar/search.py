@@ -3,8 +3,9 @@
 The search follows Dolgov et al. (2010) as Apollo's and Autoware's planners implement it:
 arcs of fixed length at a few steering angles in both directions; costs for length,
 reversing, direction switches and steering; the heuristic is the larger of the Reeds-Shepp
-length and an obstacle-aware grid distance; each expanded node tries a collision-free
-Reeds-Shepp connection to the target. A node also ends the search when its pose lies in
+length and an obstacle-aware grid distance, and where the forward search stalls, the cost to
+go over (x, y, heading) that knows the car (``heuristic.CostToGoHeuristic``); each expanded
+node tries a collision-free Reeds-Shepp connection to the target. A node also ends the search when its pose lies in
 the ISO goal set (inside the slot with margins and heading to spare).
 
 Collision checks are exact for the swept footprint: poses are sampled ``sample_step``
@@ -275,7 +276,8 @@ class HybridAStar:
         Two searches share the budget: first backward, out of the slot from the target
         until a Reeds-Shepp curve meets the start (in a tight slot the few ways out are
         found at once, where a forward search floods the road); then, if that fails,
-        forward from the start into the ISO goal set. Paths are reversible, so the
+        forward from the start into the ISO goal set, on the grid distance for
+        ``plain_expansions`` and then on the cost to go. Paths are reversible, so the
         backward one is driven in reverse order with the gear costs swapped.
         Status: "ok", "start_in_collision", "no_goal" (no pose in the slot passes the ISO
         check), "no_path" (the reachable space is exhausted), "budget" (``max_expansions``
