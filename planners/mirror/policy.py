@@ -23,7 +23,8 @@ from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import VehicleState, to_action
 
 from ..base import PlanStats, Policy
-from ..common.tracker import hold_accel
+from ..common.brake import clearest_stop
+from ..common.tracker import emergency_accel, hold_accel
 from .config import MirrorPlannerConfig, MirrorPolicyConfig
 from .planner import MirrorPlanner
 from .plans import Plan
@@ -46,6 +47,7 @@ class MirrorPolicy(Policy):
         self.max_plans = pc.max_plans  # plans per episode before giving up
         self.patience = pc.patience  # plans without lowering the cost of standing still
         self.planner: MirrorPlanner | None = None
+        self.geometry: ScenarioGeometry | None = None
         self.plan: Plan | None = None
         self.k = 0
         self._step = 0  # control steps so far
@@ -57,7 +59,8 @@ class MirrorPolicy(Policy):
         once, as a car refuses a gap it has measured: status ``no_goal``, the car stays."""
         t0 = time.perf_counter()
         self.planner = MirrorPlanner(geometry, self.config)
-        g = geometry
+        self.geometry = g = geometry
+        self._stand_first: float | None = None  # brake to a stand on this steering first (a changed scene)
         fits = bool(iso_pose_exists(g.parking_type.value, g.slot_length, g.slot_width, g.vehicle))
         if fits:
             self.planner.prepare()
@@ -82,6 +85,13 @@ class MirrorPolicy(Policy):
             raise RuntimeError("MirrorPolicy: call reset(geometry) first")
         s: VehicleState = info["vehicle_state"]
         self._step += 1
+        changed = self.changed_scene(info, self.geometry)
+        if changed is not None:
+            self._new_scene(changed, s)
+        if self._stand_first is not None:  # a changed scene: brake to a stand on the clearest steering
+            if abs(s.v) >= IDLE_SPEED:
+                return to_action(self.params, emergency_accel(self.params, s.v, s.a), self._stand_first)
+            self._stand_first = None
         if not self.gave_up and (
             self.plan is None or self.k >= len(self.plan.commands) or self._drifted(s) or self._idle(s)
         ):
@@ -91,6 +101,18 @@ class MirrorPolicy(Policy):
         a, d = self.plan.commands[self.k]
         self.k += 1
         return to_action(self.params, float(a), float(d))
+
+    def _new_scene(self, geometry: ScenarioGeometry, s: VehicleState) -> None:
+        """The scene changed (a late obstacle): the plan in hand did not know it. Brake to a
+        stand on the steering that keeps clearest of the new scene, then plan in it, with the
+        search for progress begun afresh."""
+        self.planner = MirrorPlanner(geometry, self.config)
+        self.planner.prepare()
+        self.geometry = geometry
+        self.plan = None
+        self._stand_first = clearest_stop(geometry, s.as_array())
+        self._failures, self._failed_at, self._stood = 0, None, []
+        self._best, self._since_best, self._stuck = math.inf, 0, 0
 
     def _idle(self, s: VehicleState) -> bool:
         """The car stands and the rest of the plan would move it less than ``IDLE_TRAVEL``:
