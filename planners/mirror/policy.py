@@ -24,6 +24,7 @@ from mirrorpark_env.vehicle import VehicleState, to_action
 
 from ..base import PlanStats, Policy
 from ..common.brake import clearest_stop
+from ..common.innovation import Innovation
 from ..common.tracker import emergency_accel, hold_accel
 from .config import MirrorPlannerConfig, MirrorPolicyConfig
 from .planner import MirrorPlanner
@@ -73,6 +74,9 @@ class MirrorPolicy(Policy):
         self.stats = [] if fits else [PlanStats(0.0, "no_goal", detail={"reason": "no ISO pose in this slot"})]
         self.plans: list[Plan] = []
         self.gave_up = not fits
+        self._innovation = Innovation(geometry.vehicle, self.config.core.dt)
+        self.planner_config = self.config  # the planner's settings now: its margins grow (``_widen``)
+        self._margin_level = 0  # margin steps added to the clearances (``_widen``)
         self._failures = 0
         self._failed_at: np.ndarray | None = None  # standing state of the last failed call
         self._stood: list[np.ndarray | None] = []  # the last two calls' standing states
@@ -83,7 +87,38 @@ class MirrorPolicy(Policy):
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         if self.planner is None:
             raise RuntimeError("MirrorPolicy: call reset(geometry) first")
-        s: VehicleState = info["vehicle_state"]
+        s = self._innovation.observe(info["vehicle_state"])  # the measurement itself, unless it is noisy
+        self._widen()
+        action = self._decide(s, info)
+        self._innovation.sent(action)
+        return action
+
+    def _widen(self) -> None:
+        """Keep the clearances above what the innovation says the car's pose may be off by:
+        ``margin_gain`` x its RMS, in steps of ``margin_step`` up to ``margin_max``, added to
+        the planned and checked clearances. A wider margin takes a new planner, and the plan
+        in hand (made with the narrower one) is dropped. Without a perturbation the
+        innovation is exactly zero: the margins stay as configured."""
+        pc = self.policy_config
+        extra = min(pc.margin_max, pc.margin_gain * self._innovation.position_rms)
+        level = math.floor(extra / pc.margin_step + 1e-9)
+        if level <= self._margin_level:
+            return
+        self._margin_level = level
+        core = self.config.core
+        m = level * pc.margin_step
+        self.planner_config = cfg = self.config.model_copy(
+            update={
+                "core": core.model_copy(
+                    update={"obstacle_margin": core.obstacle_margin + m, "check_margin": core.check_margin + m}
+                )
+            }
+        )
+        self.planner = MirrorPlanner(self.geometry, cfg)
+        self.planner.prepare()
+        self.plan = None
+
+    def _decide(self, s: VehicleState, info: dict[str, Any]) -> np.ndarray:
         self._step += 1
         changed = self.changed_scene(info, self.geometry)
         if changed is not None:
@@ -106,7 +141,7 @@ class MirrorPolicy(Policy):
         """The scene changed (a late obstacle): the plan in hand did not know it. Brake to a
         stand on the steering that keeps clearest of the new scene, then plan in it, with the
         search for progress begun afresh."""
-        self.planner = MirrorPlanner(geometry, self.config)
+        self.planner = MirrorPlanner(geometry, self.planner_config)
         self.planner.prepare()
         self.geometry = geometry
         self.plan = None
