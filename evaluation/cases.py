@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from mirrorpark_env.grid import default_grid_cases
@@ -177,3 +178,20 @@ def _case(p: Path, n: int, row: dict) -> Scenario:
     except (ValueError, OverflowError) as err:
         raise ValueError(f"{p}: case {n}: {err}") from None
     return sc
+
+
+def selected(args) -> list:
+    """The cases (``--cases``/``--sample``) or layouts (``--layouts``) to run, filtered by
+    ``--types``; repeats are reported and run once."""
+
+    if getattr(args, "layouts", None):
+        items, repeats = layouts_from(args.layouts, args.types, getattr(args, "vehicle", None))
+        what = "--layouts"
+    else:
+        if getattr(args, "vehicle", None):
+            raise ValueError("--vehicle: only with --layouts (the grid's cases are drawn for the paper's car)")
+        items, repeats = cases_from(args.sample, args.cases, args.types)
+        what = args.cases
+    if repeats:
+        print(f"mirrorpark: note: {what}: {repeats} repeated case(s) run once", file=sys.stderr)
+    return chunk(items, getattr(args, "chunk", None))

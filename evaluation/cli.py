@@ -17,18 +17,20 @@ from mirrorpark_env.grid import Grid
 
 from . import registry
 from .call_limit import CALL_LIMIT_S
-from .cases import cases_from, chunk, layouts_from
+from .cases import selected
 from .cli_bench import add_bench
 from .cli_compare import add_compare
 from .cli_export import add_export
 from .cli_lots import add_lots
 from .cli_rl import add_train_rl
+from .cli_robustness import add_robustness
 from .collect import collect
 from .demo import run_demo
 from .diff import compare, format_diff
 from .layout_report import write_layout_report
 from .metrics import summary
 from .mirror_demo import mirror_demo
+from .perturbations import resolve
 from .registry import MAIN
 from .report import write_report
 from .runner import WorkerDied, evaluate
@@ -61,26 +63,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cases(args: argparse.Namespace):
-    """The cases (``--cases``/``--sample``) or layouts (``--layouts``) to run, filtered by
-    ``--types``; repeats are reported and run once."""
-
-    if getattr(args, "layouts", None):
-        items, repeats = layouts_from(args.layouts, args.types, getattr(args, "vehicle", None))
-        what = "--layouts"
-    else:
-        if getattr(args, "vehicle", None):
-            raise ValueError("--vehicle: only with --layouts (the grid's cases are drawn for the paper's car)")
-        items, repeats = cases_from(args.sample, args.cases, args.types)
-        what = args.cases
-    if repeats:
-        print(f"mirrorpark: note: {what}: {repeats} repeated case(s) run once", file=sys.stderr)
-    return chunk(items, getattr(args, "chunk", None))
-
-
 def cmd_evaluate(args: argparse.Namespace) -> int:
 
-    scenarios = _cases(args)
+    scenarios = selected(args)
     out = Path(args.out)
     if args.export:
         _writable_folder(Path(args.export), "--export")  # before any case runs, not after all of them
@@ -95,6 +80,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         mixed_code=args.mixed_code,
         trajectories=args.trajectories,
         call_limit_s=args.call_limit,
+        perturb=resolve(args.perturb),
     )
     df = read_results([out], REQUIRED)
     ids = {sc.case_id for sc in scenarios}
@@ -132,7 +118,7 @@ def _writable_folder(folder: Path, what: str) -> None:
 def cmd_collect(args: argparse.Namespace) -> int:
 
     path = collect(
-        args.planner, _cases(args), Path(args.out), args.workers, progress=not args.quiet, mixed_code=args.mixed_code
+        args.planner, selected(args), Path(args.out), args.workers, progress=not args.quiet, mixed_code=args.mixed_code
     )
     print(f"wrote {path} (load it with minari.MinariDataset('{path / 'data'}'))")
     return 0
@@ -158,7 +144,7 @@ def cmd_diff(args: argparse.Namespace) -> int:
 def cmd_main(args: argparse.Namespace) -> int:
     """The main job: a smoke evaluation of the main planners (registry.MAIN), then the report."""
 
-    scenarios = _cases(args)
+    scenarios = selected(args)
     out = Path(args.out)
     planners = list(MAIN) if args.planners is None else args.planners
     for p in planners:
@@ -291,6 +277,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="keep each episode's states and commands (for `mirrorpark export --trajectories`; layouts always)",
     )
     call_limit_arg(e)
+    e.add_argument(
+        "--perturb",
+        default=None,
+        metavar="NAME|FILE",
+        help="run in a perturbed world: mild, moderate, severe or a YAML file of perturbation fields "
+        "(docs/robustness.md); verdicts stay on the true state",
+    )
     e.add_argument("--backend", default="local", choices=["local", "ray"])
     e.add_argument("--address", default=None, help="Ray cluster address (default: start a local Ray)")
     e.add_argument("--out", default=None, help="results folder (default: results/<planner>-<sample>)")
@@ -334,6 +327,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_bench(sub, _positive_int)
     add_train_rl(sub, _positive_int)
     add_lots(sub, _positive_int)
+    add_robustness(sub, _positive_int, _seconds)
     add_compare(sub)
     add_export(sub)
     return ap
@@ -384,6 +378,7 @@ def main(argv: list[str] | None = None) -> int:
         args.out = (
             f"results/{args.planner.replace(':', '_').replace('/', '_')}-"
             f"{'layouts' if args.layouts else 'cases' if args.cases else args.sample}"
+            + (f"-{Path(args.perturb).stem}" if args.perturb else "")
         )
     with _one_line_warnings(), _stop_on_sigterm() as terminated:
         return _run(args, terminated)

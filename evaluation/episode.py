@@ -18,6 +18,7 @@ import gymnasium as gym
 import numpy as np
 
 import mirrorpark_env  # noqa: F401
+from mirrorpark_env.config import PerturbConfig
 from mirrorpark_env.criteria import iso_pose_exists
 from mirrorpark_env.layout import Layout
 from mirrorpark_env.layout_io import content_key
@@ -31,14 +32,14 @@ from .causes import episode_cause
 from .provenance import current_id
 from .schema import MARGINS, wrong_types
 
-_ENV = None  # one environment per worker process
+_ENVS: dict[PerturbConfig | None, gym.Env] = {}  # one environment per worker process and perturbation
 
 
-def worker_env():
-    global _ENV
-    if _ENV is None:
-        _ENV = gym.make("MirrorPark-v0")  # with its TimeLimit: episodes end at 180 s
-    return _ENV
+def worker_env(perturb: PerturbConfig | None = None):
+    """This process's environment (with its TimeLimit: episodes end at 180 s), under ``perturb``."""
+    if perturb not in _ENVS:
+        _ENVS[perturb] = gym.make("MirrorPark-v0", config=None if perturb is None else {"perturb": perturb})
+    return _ENVS[perturb]
 
 
 def case_fields(sc: Scenario) -> dict[str, Any]:
@@ -93,7 +94,7 @@ def trajectory_fields(trace: list[dict], actions: list, params: VehicleParams) -
     step (acceleration, steering; the last state has none: NaN). States are rounded to 0.1 mm
     and 1e-6 rad; commands are kept whole, so that the truth model replays them exactly."""
 
-    states = [i["vehicle_state"] for i in trace]
+    states = [i.get("true_state", i["vehicle_state"]) for i in trace]  # the truth, where it is perturbed
     commands = [from_action(params, a) for a in actions] + [(math.nan, math.nan)]
     return {
         "path_t": [round(float(i["parking_time"]), 6) for i in trace],
@@ -114,6 +115,7 @@ def run_case(
     keep_stats: list | None = None,
     trajectory: bool = False,
     call_limit_s: float | None = CALL_LIMIT_S,
+    perturb: PerturbConfig | None = None,
 ) -> dict[str, Any]:
     """One episode of ``planner`` on a grid case or a layout; never raises (errors become rows:
     an exception, a plug-in's ``sys.exit``, a call past ``call_limit_s`` seconds, the safety
@@ -122,11 +124,12 @@ def run_case(
 
     With ``trajectory`` (always for a layout) the row also holds the driven trajectory
     (``trajectory_fields``, in the layout's frame) for figures and ``mirrorpark export
-    --trajectories``. ``keep_stats``: a list that the policy's ``PlanStats`` of every call
-    are appended to (the benchmark's breakdown)."""
+    --trajectories``. ``perturb``: the world differs from what the planner is told
+    (``mirrorpark_env.perturb``; the row names it in ``perturb``). ``keep_stats``: a list
+    that the policy's ``PlanStats`` of every call are appended to (the benchmark's breakdown)."""
 
     t0 = time.perf_counter()
-    row: dict[str, Any] = {"planner": planner}
+    row: dict[str, Any] = {"planner": planner} | ({} if perturb is None else {"perturb": perturb.name})
     info = None
     try:
         is_layout = isinstance(sc, Layout)
@@ -136,7 +139,7 @@ def run_case(
         keep = trajectory or is_layout
         trace: list[dict] | None = [] if keep else None
         actions: list | None = [] if keep else None
-        env = worker_env()
+        env = worker_env(perturb)
         with redirect_stdout(sys.stderr):
             info, steps = run_episode(env, watched, sc, trace=trace, actions=actions)
         if keep:

@@ -15,12 +15,14 @@ from typing import Any
 
 from tqdm import tqdm
 
+from mirrorpark_env.config import PerturbConfig
 from mirrorpark_env.layout import Layout
 from mirrorpark_env.layout_io import content_key
 from mirrorpark_env.scenario import Scenario
 
 from .call_limit import CALL_LIMIT_S
 from .episode import run_case, worker_env
+from .perturbations import check_folder
 from .pool import WorkerDied, run_parallel
 from .provenance import check_resume
 from .registry import make_policy
@@ -59,9 +61,9 @@ def unique(scenarios: Iterable[Scenario]) -> tuple[list[Scenario], int]:
     return out, n_in - len(out)
 
 
-def _run_case_tuple(args: tuple[str, Scenario, bool, float | None]) -> dict[str, Any]:
-    planner, sc, trajectory, call_limit_s = args
-    return run_case(planner, sc, trajectory=trajectory, call_limit_s=call_limit_s)
+def _run_case_tuple(args: tuple[str, Scenario, bool, float | None, PerturbConfig | None]) -> dict[str, Any]:
+    planner, sc, trajectory, call_limit_s, perturb = args
+    return run_case(planner, sc, trajectory=trajectory, call_limit_s=call_limit_s, perturb=perturb)
 
 
 def evaluate(
@@ -75,12 +77,15 @@ def evaluate(
     mixed_code: bool = False,
     trajectories: bool = False,
     call_limit_s: float | None = CALL_LIMIT_S,
+    perturb: PerturbConfig | None = None,
 ) -> ResultStore:
     """Run ``planner`` over ``scenarios`` into the store at ``out``; resume where it stopped,
     if its rows of ``planner`` came from this code (``provenance.check_resume``; ``mixed_code``:
     whatever code they came from). ``trajectories``: rows keep the driven trajectory (layout
     rows always do). ``call_limit_s``: the wall-clock safety net per planner call
-    (``call_limit.py``; None or 0: none); a call past it ends its case as an error row."""
+    (``call_limit.py``; None or 0: none); a call past it ends its case as an error row.
+    ``perturb``: the world differs from what the planner is told (``mirrorpark_env.perturb``);
+    a folder holds rows of one perturbation (``perturbations.check_folder``)."""
 
     make_policy(planner)  # an unknown planner fails now, not in every worker
     if backend not in ("local", "ray"):
@@ -93,7 +98,17 @@ def evaluate(
     store = ResultStore(out)
     with locked(store.folder):  # one run per results folder at a time
         _run_into(
-            store, planner, scenarios, workers, backend, ray_address, progress, mixed_code, trajectories, call_limit_s
+            store,
+            planner,
+            scenarios,
+            workers,
+            backend,
+            ray_address,
+            progress,
+            mixed_code,
+            trajectories,
+            call_limit_s,
+            perturb,
         )
     return store
 
@@ -109,12 +124,14 @@ def _run_into(
     mixed_code: bool,
     trajectories: bool = False,
     call_limit_s: float | None = CALL_LIMIT_S,
+    perturb: PerturbConfig | None = None,
 ) -> None:
     """``evaluate``'s run, the folder locked: the cases not yet stored, their rows appended."""
 
     table = store.table()
     if len(table):  # a folder of some other tool's table: refused before anything runs
         check_columns(table, store.parquet if store.parquet.exists() else store.folder)
+    check_folder(store.folder, perturb, len(table))
     done = stored_keys(table, planner)
     check_resume(store.environments(), planner, len(done), store.folder, mixed_code)
     cases = unique(scenarios)[0]
@@ -137,12 +154,12 @@ def _run_into(
 
     try:
         if backend == "ray":
-            _run_ray(planner, todo, keep, ray_address, workers, trajectories, call_limit_s)
+            _run_ray(planner, todo, keep, ray_address, workers, trajectories, call_limit_s, perturb)
         elif min(workers, len(todo)) <= 1:  # no processes to start for one case
             for sc in todo:
-                keep(run_case(planner, sc, trajectory=trajectories, call_limit_s=call_limit_s))
+                keep(run_case(planner, sc, trajectory=trajectories, call_limit_s=call_limit_s, perturb=perturb))
         else:
-            items = [(planner, sc, trajectories, call_limit_s) for sc in todo]
+            items = [(planner, sc, trajectories, call_limit_s, perturb) for sc in todo]
             run_parallel(
                 _run_case_tuple,
                 items,
@@ -197,6 +214,7 @@ def _run_ray(
     workers: int,
     trajectories: bool = False,
     call_limit_s: float | None = CALL_LIMIT_S,
+    perturb: PerturbConfig | None = None,
 ) -> None:
     try:
         import ray
@@ -225,7 +243,7 @@ def _run_ray(
             keep(row)
 
     for sc in todo:  # a few tasks in flight per CPU; one new task per finished one
-        pending[task.remote(planner, sc, trajectory=trajectories, call_limit_s=call_limit_s)] = sc
+        pending[task.remote(planner, sc, trajectory=trajectories, call_limit_s=call_limit_s, perturb=perturb)] = sc
         if len(pending) >= limit:
             collect()
     while pending:

@@ -55,6 +55,7 @@ COLUMNS: tuple[Column, ...] = (
     Column(
         "vehicle", "str", exported=False, doc="the car a layout ran with: paper, tpcap or custom (layout rows only)"
     ),
+    Column("perturb", "str", exported=False, doc="the perturbation the episode ran under (perturbed rows only)"),
     Column("parking_type", "str", doc="parallel, reverse, angle (none: a layout without a slot)"),
     Column("road_width", "float", "m"),
     Column("slot_length", "float", "m"),

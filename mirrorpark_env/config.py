@@ -163,6 +163,71 @@ class LidarConfig(StrictModel):
     max_range: float = Field(10.0, gt=0, le=200)  # [m]
 
 
+class NoiseConfig(StrictModel):
+    """Measurement error on the observed pose, heading and speed (``perturb.MeasurementNoise``):
+    a zero-mean Gaussian per channel (independent per step, or first-order Gauss-Markov with
+    ``correlation_time_s``) plus a constant bias; positions in the car's own frame."""
+
+    position_std: float = Field(0.0, ge=0, le=2)  # [m] per axis (longitudinal, lateral)
+    heading_std_deg: float = Field(0.0, ge=0, le=20)
+    speed_std: float = Field(0.0, ge=0, le=2)  # [m/s]
+    longitudinal_bias: float = Field(0.0, ge=-2, le=2)  # [m] along the car's heading
+    lateral_bias: float = Field(0.0, ge=-2, le=2)  # [m] to the car's left
+    heading_bias_deg: float = Field(0.0, ge=-20, le=20)
+    speed_bias: float = Field(0.0, ge=-2, le=2)  # [m/s]
+    correlation_time_s: float = Field(0.0, ge=0, le=600)  # 0: white; else each channel's time constant
+
+
+class ActuatorConfig(StrictModel):
+    """The truth's actuators differ from the model the planners are told
+    (``perturb.CommandPath``): lags scaled, gains and an offset on the commands, and rate
+    limits on the commands the actuators take (0: none)."""
+
+    tau_accel_scale: float = Field(1.0, ge=0.2, le=10)
+    tau_steer_scale: float = Field(1.0, ge=0.2, le=10)
+    accel_gain: float = Field(1.0, ge=0.5, le=1.5)
+    steer_gain: float = Field(1.0, ge=0.5, le=1.5)
+    steer_offset_deg: float = Field(0.0, ge=-10, le=10)  # [deg] of front-wheel angle
+    steer_rate_max_deg_s: float = Field(0.0, ge=0, le=2000)  # [deg/s] front wheel; 0: no limit
+    jerk_max: float = Field(0.0, ge=0, le=1000)  # [m/s^3] on the acceleration command; 0: no limit
+
+
+class ModelErrorConfig(StrictModel):
+    """The truth car minus the car the planners are told (``geometry.vehicle``): lengths in
+    metres, the steering limit as a factor. Collision and ISO verdicts use the truth car."""
+
+    wheelbase: float = Field(0.0, ge=-0.5, le=0.5)
+    rear_overhang: float = Field(0.0, ge=-0.5, le=0.5)
+    front_length: float = Field(0.0, ge=-0.5, le=0.5)
+    width: float = Field(0.0, ge=-0.3, le=0.3)
+    max_steer_scale: float = Field(1.0, ge=0.7, le=1.2)
+
+
+class LateObstacleConfig(StrictModel):
+    """A pedestrian-sized box that appears ``time_s`` into the episode, ``ahead`` metres beyond
+    the bumper the car drives toward (``lateral`` to its left), and stays."""
+
+    time_s: float = Field(ge=0, le=3600)
+    ahead: float = Field(2.0, ge=0.2, le=30)  # [m] from the bumper to the box
+    lateral: float = Field(0.0, ge=-5, le=5)  # [m] the box's centre, left of the car's axis
+    length: float = Field(0.5, gt=0, le=5)  # [m] along the car's heading
+    width: float = Field(0.5, gt=0, le=5)  # [m]
+
+
+class PerturbConfig(StrictModel):
+    """How the world differs from what the planners know (``perturb.py``); every part off by
+    default. ``seed`` with the case's id seeds the noise: a case, seed and perturbation give
+    the same episode on any worker."""
+
+    name: str = Field("custom", min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.+-]+$")
+    seed: int = Field(0, ge=0, le=2**31 - 1)
+    noise: NoiseConfig = NoiseConfig()
+    actuator: ActuatorConfig = ActuatorConfig()
+    delay_steps: int = Field(0, ge=0, le=20)  # control steps between a command and its actuation
+    model: ModelErrorConfig = ModelErrorConfig()
+    late_obstacle: LateObstacleConfig | None = None
+
+
 class EnvConfig(StrictModel):
     """Everything ``MirrorPark-v0`` can be configured with."""
 
@@ -175,6 +240,14 @@ class EnvConfig(StrictModel):
     render: RenderConfig = RenderConfig()
     lidar: LidarConfig = LidarConfig()
     vehicle: VehicleConfig  # default_env() reads configs/vehicle.yaml
+    perturb: PerturbConfig | None = None  # None: the world is what the planners are told
+
+    @model_validator(mode="before")
+    @classmethod
+    def _perturb_preset(cls, data: Any) -> Any:
+        if isinstance(data, dict) and isinstance(data.get("perturb"), str):  # a preset by name
+            data = {**data, "perturb": perturb_preset(data["perturb"]).model_dump()}
+        return data
 
     @model_validator(mode="after")
     def _substeps_divide(self) -> EnvConfig:
@@ -247,6 +320,16 @@ def default_vehicle() -> VehicleConfig:
 
 def default_grid() -> GridConfig:
     return load(GridConfig, default_config_path("grid.yaml"))
+
+
+PERTURB_PRESETS = ("mild", "moderate", "severe")  # configs/perturb/<name>.yaml
+
+
+def perturb_preset(name: str) -> PerturbConfig:
+    """A named perturbation (``PERTURB_PRESETS``); ``ValueError`` naming the presets otherwise."""
+    if name not in PERTURB_PRESETS:
+        raise ValueError(f"perturb: a preset in {list(PERTURB_PRESETS)} or a mapping of fields, got {name!r}")
+    return load(PerturbConfig, default_config_path(f"perturb/{name}.yaml"))
 
 
 def default_env() -> EnvConfig:

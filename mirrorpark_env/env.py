@@ -5,6 +5,7 @@ The class docstring of ``MirrorParkEnv`` is the environment's specification.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any
@@ -15,10 +16,11 @@ from gymnasium import spaces
 
 from .config import EnvConfig, default_env, merge
 from .criteria import SuccessCriteria
-from .geometry import COLLISION_TOL
+from .geometry import COLLISION_TOL, ConvexSet
 from .grid import TYPES, grid_for
 from .layout import Layout
 from .lidar import Lidar
+from .perturb import Perturbation
 from .rendering import Renderer
 from .scenario import Scenario, ScenarioGeometry, grid_layout
 from .vehicle import TruthModel, VehicleParams, VehicleState, from_action
@@ -144,10 +146,13 @@ class MirrorParkEnv(gym.Env):
             raise ValueError("reset options: give one of 'scenario', 'layout' and 'lot'")
         layout = self._layout_from(options)
         params = layout.vehicle or self.default_params  # a scene's own car, else the config's
-        if params != self.params:
-            self.params, self.model = params, TruthModel(params, self.cfg.dt, self.cfg.substep)
-        g = layout.build(params)
-        self.geometry = g
+        told = layout.build(params)  # the scene the planners are told of
+        self.perturbation = self._perturbation(layout, params)
+        truth = params if self.perturbation is None else self.perturbation.truth
+        if params != self.params or truth != self.model.params:
+            self.params, self.model = params, TruthModel(truth, self.cfg.dt, self.cfg.substep)
+        g = told if truth == params else dataclasses.replace(told, vehicle=truth)
+        self.geometry, self.told_geometry = g, told  # the truth's scene (verdicts), the planners'
         self.criteria = SuccessCriteria(g, self.cfg.criteria)
         s = g.start
         self.state = np.array([s.x, s.y, s.theta, 0.0, 0.0, 0.0])
@@ -174,8 +179,20 @@ class MirrorParkEnv(gym.Env):
             self._renderer.reset(g, s.x, s.y, s.theta)
         obs = self._obs()
         info = self._info(False)
-        info.update(scenario=layout.scenario, case_id=layout.case_id, geometry=g, layout=layout)
+        info.update(scenario=layout.scenario, case_id=layout.case_id, geometry=told, layout=layout)
         return obs, info
+
+    def _perturbation(self, layout: Layout, told: VehicleParams) -> Perturbation | None:
+        """This episode's perturbation (``perturb.py``), seeded by the case; None when off."""
+        if self.cfg.perturb is None:
+            return None
+        if layout.scenario is not None:
+            key = layout.case_id
+        else:
+            from .layout_io import content_key
+
+            key = content_key(layout)
+        return Perturbation(self.cfg.perturb, told, self.cfg.dt, key)
 
     def _layout_from(self, options: dict[str, Any]) -> Layout:
         if options.get("lot") is not None:
@@ -233,6 +250,8 @@ class MirrorParkEnv(gym.Env):
         if self.done:
             raise RuntimeError("MirrorPark-v0: the episode has ended; call reset()")
         a_cmd, d_cmd = from_action(self.params, action)
+        if self.perturbation is not None:  # the truth's actuators take what reaches them
+            a_cmd, d_cmd = self.perturbation.commands.apply(a_cmd, d_cmd)
         traj = self.model.step(self.state, a_cmd, d_cmd)
         gap = self._gaps(traj)
         hit = gap < -COLLISION_TOL
@@ -258,15 +277,37 @@ class MirrorParkEnv(gym.Env):
         x, y, th = self.state[:3].tolist()
         box = self.geometry.bounds
         out = not (box[0] <= x <= box[1] and box[2] <= y <= box[3])
+        late = (
+            None
+            if self.perturbation is None
+            else self.perturbation.late_obstacle(self.time, self.state, self._last_dir)
+        )
+        if late is not None:
+            self._add_obstacle(late)
         obs = self._obs()
         info = self._info(out)
+        if late is not None:  # the scene changed: the planners are told once, as at reset
+            info["geometry"] = self.told_geometry
         terminated = bool(info["is_success"] or self.collided or out)
         truncated = False  # the time limit is the registration's max_episode_steps (TimeLimit)
         self.done = terminated
-        reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], info))
+        achieved = obs["achieved_goal"] if self.perturbation is None else self._goal(self.state)  # the truth's
+        reward = float(self.compute_reward(achieved, obs["desired_goal"], info))
         if self._renderer is not None:
             self._renderer.update(x, y, th, self.state[3])
         return obs, reward, terminated, truncated, info
+
+    def _add_obstacle(self, corners: np.ndarray) -> None:
+        """A new obstacle part in the truth's scene and in the one the planners are told of."""
+        self.geometry, self.told_geometry = (
+            dataclasses.replace(g, obstacles=ConvexSet.from_polygons([*g.obstacles.polygons, corners]))
+            for g in (self.geometry, self.told_geometry)
+        )
+        self._free = False
+        if self._lidar is not None:
+            self._lidar = Lidar(self.geometry.obstacles, self.cfg.lidar.rays, self.cfg.lidar.max_range)
+        if self._renderer is not None:
+            self._renderer.add_obstacle(corners)
 
     def _gaps(self, traj: np.ndarray) -> np.ndarray:
         """Each sub-step's gap to the nearest obstacle: the separating-axis gap, a lower bound
@@ -287,8 +328,23 @@ class MirrorParkEnv(gym.Env):
         self._last_dir = last
 
     # ------------------------------------------------------------ observation
+    def _measure(self) -> None:
+        """The state the planners observe this step: the truth's, or with the noise drawn."""
+        if self.perturbation is None:
+            self.measured = VehicleState(*self.state.tolist())
+        else:
+            self.measured = self.perturbation.noise.measure(self.state)
+
+    @staticmethod
+    def _goal(state: np.ndarray) -> np.ndarray:
+        """The achieved goal of a true state (``_obs``'s first four entries)."""
+        x, y, th = (float(q) for q in state[:3])
+        return np.array([x / POS_SCALE, y / POS_SCALE, math.cos(th), math.sin(th)], dtype=np.float32)
+
     def _obs(self) -> dict[str, np.ndarray]:
-        x, y, th, v, a, d = self.state.tolist()
+        self._measure()
+        m = self.measured
+        x, y, th, v, a, d = m.x, m.y, m.theta, m.v, m.a, m.delta
         p = self.params
         c, s = math.cos(th), math.sin(th)
         x, y = x / POS_SCALE, y / POS_SCALE
@@ -301,7 +357,9 @@ class MirrorParkEnv(gym.Env):
             "desired_goal": self._desired.copy(),
         }
         if self._lidar is not None:
-            out["lidar"] = self._lidar.read_body(self.state[0], self.state[1], th, self.params.center_offset)
+            out["lidar"] = self._lidar.read_body(  # the sensor sits on the true car
+                self.state[0], self.state[1], float(self.state[2]), self.model.params.center_offset
+            )
         return out
 
     def _info(self, out_of_scene: bool) -> dict[str, Any]:
@@ -325,8 +383,8 @@ class MirrorParkEnv(gym.Env):
             "speed_at_min_clearance": self.speed_at_min_clearance,  # [m/s] |v| at that moment
             "min_clearance_away": self.min_clearance_away,  # [m] the same, over poses > 1 m from the start
             "speed_at_min_clearance_away": self.speed_at_min_clearance_away,
-            "vehicle_state": VehicleState(x, y, th, v, a, d),
-        }
+            "vehicle_state": self.measured,  # what the planners observe (``_obs`` measures it)
+        } | ({} if self.perturbation is None else {"true_state": VehicleState(x, y, th, v, a, d)})
 
     # ------------------------------------------------------------------ reward
     def compute_reward(self, achieved_goal, desired_goal, info) -> np.ndarray | float:

@@ -111,17 +111,23 @@ class Renderer:
             "manual_control": False,
         }
         self.geometry: ScenarioGeometry | None = None
+        self.late: list[np.ndarray] = []
         self.scene: Scene | None = None
         self.road = None
         self.viewer = None
 
     def reset(self, geometry: ScenarioGeometry, x: float, y: float, theta: float) -> None:
         self.geometry = geometry
+        self.late: list[np.ndarray] = []  # obstacles that appeared during the episode
         self.scene = Scene(geometry)
         self.road = self.scene.road
         self.scene.update(x, y, theta, 0.0)
         if self.mode == "human":
             self.render()
+
+    def add_obstacle(self, corners: np.ndarray) -> None:
+        """Draw an obstacle that appeared during the episode (a late obstacle) from now on."""
+        self.late.append(np.asarray(corners, dtype=float))
 
     def update(self, x: float, y: float, theta: float, v: float) -> None:
         self.scene.update(x, y, theta, v)
@@ -172,7 +178,7 @@ def make_viewer(renderer: Renderer):
             surf.fill((118, 118, 118))
             g = self.env.geometry
             polys = g.obstacles.polygons if g.layout is None or g.scenario is not None else g.layout.obstacles
-            for poly in polys:  # a layout's obstacles as given (not their convex parts)
+            for poly in [*polys, *self.env.late]:  # a layout's obstacles as given (not their convex parts)
                 pts = [surf.pos2pix(px, -py) for px, py in poly]
                 pygame.draw.polygon(surf, self.OBSTACLE, pts)
                 pygame.draw.polygon(surf, self.OBSTACLE_EDGE, pts, 2)

@@ -1,8 +1,9 @@
 """The policy interface every planner implements, and per-call planning statistics.
 
 A policy sees what a real parking system sees: the scenario's geometry once at reset
-(``info["geometry"]`` of ``env.reset``) and the measured vehicle state each step
-(``info["vehicle_state"]``). It returns the environment's normalised action.
+(``info["geometry"]`` of ``env.reset``, and again in the step where the scene changes:
+``Policy.changed_scene``) and the measured vehicle state each step (``info["vehicle_state"]``).
+It returns the environment's normalised action.
 """
 
 from __future__ import annotations
@@ -46,6 +47,13 @@ class Policy(ABC):
     @abstractmethod
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         """The next normalised action [accel, steer] for the measured state in ``info``."""
+
+    @staticmethod
+    def changed_scene(info: dict[str, Any], known: ScenarioGeometry | None) -> ScenarioGeometry | None:
+        """The scene in ``info`` where it is not the one ``known`` (the environment sends a
+        changed scene, a late obstacle, once in that step's info), else None."""
+        g = info.get("geometry")
+        return g if g is not None and g is not known else None
 
     @property
     def status(self) -> str:

@@ -57,3 +57,29 @@ class BrakeRollout:
         or not (a car that nearly stands creeps on, and its creep is part of the check)."""
         s = np.asarray(state, dtype=float)[:6]
         return _brake_poses(s, 0.0, 0.0, int(steps) - 1, self.lags, self.consts, False, False)
+
+
+def clearest_stop(geometry, state, steps: int = 40) -> float:
+    """The steering command to hold while braking to a stand (``tracker.emergency_accel``) that
+    keeps the footprint farthest from ``geometry``'s obstacles: the wheels as they are,
+    straight, or at either lock. For a scene that changed under a moving car (a late
+    obstacle), where holding a turn may swing a corner into what appeared."""
+    from .clearance import gaps
+    from .tracker import emergency_accel
+
+    p = geometry.vehicle
+    model = TruthModel(p)
+    s0 = np.asarray(state, dtype=float)[:6]
+    best, best_gap = float(s0[5]), -np.inf
+    for d_cmd in (float(s0[5]), 0.0, p.max_steer_rad, -p.max_steer_rad):
+        s, poses = s0, []
+        for _ in range(steps):
+            rows = model.step(s, emergency_accel(p, s[3], s[4]), d_cmd)
+            poses.append(rows[:, :3])
+            s = rows[-1, :6]
+            if abs(s[3]) < 1e-3 and abs(s[4]) < 1e-2:
+                break
+        gap = float(gaps(geometry.checker, np.concatenate(poses), all_axes=True).min())
+        if gap > best_gap + 1e-9:
+            best, best_gap = d_cmd, gap
+    return best

@@ -11,6 +11,7 @@ already in that frame and passes through untouched.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -18,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from mirrorpark_env.config import ParkingType
+from mirrorpark_env.geometry import ConvexSet
 from mirrorpark_env.layout import Layout, Slot
 from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.slot_inference import planning_slot
@@ -185,6 +187,7 @@ class InSlotFrame(Policy):
         except NoSlot as err:
             self._refusal = PlanStats(0.0, err.status, detail={"reason": str(err)})
             return
+        self._told, self._canon = geometry, canon  # the scene as told, and as the inner policy has it
         self.inner.reset(canon)
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
@@ -193,10 +196,21 @@ class InSlotFrame(Policy):
             return to_action(self.params, hold_accel(self.params, s.v, s.a), s.delta)
         if self.frame is None:
             return self.inner.act(obs, info)
-        action = np.array(self.inner.act(obs, {**info, "vehicle_state": self.frame.state(info["vehicle_state"])}))
+        seen = {"vehicle_state": self.frame.state(info["vehicle_state"])}
+        if info.get("geometry") is not None:  # the scene: as the inner policy has it, changed or not
+            seen["geometry"] = self._scene(info["geometry"])
+        action = np.array(self.inner.act(obs, {**info, **seen}))
         if self.frame.reflected:
             action[1] = -action[1]
         return action
+
+    def _scene(self, told: ScenarioGeometry) -> ScenarioGeometry:
+        """``told`` in the slot's frame: the one the inner policy has, or where the scene has
+        changed since (a late obstacle; the slot stays where it was), its obstacles moved in."""
+        if told is not self._told:
+            parts = [self.frame.points(p) for p in told.obstacles.polygons]
+            self._told, self._canon = told, dataclasses.replace(self._canon, obstacles=ConvexSet.from_polygons(parts))
+        return self._canon
 
     @property
     def stats(self) -> list[PlanStats]:

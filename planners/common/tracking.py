@@ -25,9 +25,10 @@ from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import VehicleState, to_action
 
 from ..base import PlanStats, Policy
+from .brake import clearest_stop
 from .path import Path
 from .safety import StoppingCheck
-from .tracker import PathTracker, TrackerConfig, hold_command
+from .tracker import PathTracker, TrackerConfig, emergency_accel, hold_command
 
 
 class TrackingPolicy(Policy):
@@ -48,6 +49,7 @@ class TrackingPolicy(Policy):
         self.replan_moving = False
         self.markov = False  # plan afresh from every state (module docstring)
         self.params = None
+        self.geometry: ScenarioGeometry | None = None
 
     @abstractmethod
     def prepare(self, geometry: ScenarioGeometry) -> None:
@@ -60,6 +62,7 @@ class TrackingPolicy(Policy):
 
     def reset(self, geometry: ScenarioGeometry) -> None:
         self.prepare(geometry)
+        self.geometry = geometry
         self.params = geometry.vehicle
         self._stopping = StoppingCheck(geometry) if self.stopping_check else None
         self.safety_stops = 0
@@ -69,11 +72,15 @@ class TrackingPolicy(Policy):
         self.gave_up = False
         self._replan_when_stopped = True
         self._stand_first = False
+        self._stop_steer: float | None = None  # the steering of a stop ordered by a changed scene
 
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         if self.params is None:
             raise RuntimeError(f"{type(self).__name__}: call reset(geometry) first")
         s: VehicleState = info["vehicle_state"]
+        changed = self.changed_scene(info, self.geometry)
+        if changed is not None:
+            self._new_scene(changed, s)
         if self.markov:
             return self._act_afresh(s)
         tr = self.tracker
@@ -97,6 +104,18 @@ class TrackingPolicy(Policy):
             self._stand_first = True
             return self._brake(s)
         return action
+
+    def _new_scene(self, geometry: ScenarioGeometry, s: VehicleState) -> None:
+        """The scene changed (a late obstacle): prepare for it, brake to a stand on the
+        steering that keeps clearest of it and plan again there; the path being tracked was
+        planned without the new obstacle."""
+        self.prepare(geometry)
+        self._stop_steer = clearest_stop(geometry, s.as_array())
+        self.geometry = geometry
+        self._stopping = StoppingCheck(geometry) if self.stopping_check else None
+        self.tracker = None
+        self._replan_when_stopped = True
+        self._stand_first = True
 
     def _command(self, s: VehicleState, tr: PathTracker) -> np.ndarray | None:
         """The tracker's command as an action, or None where the stopping check forbids it
@@ -140,4 +159,9 @@ class TrackingPolicy(Policy):
         self.tracker = PathTracker(path, self.params, self.tracker_config)
 
     def _brake(self, s: VehicleState) -> np.ndarray:
-        return to_action(self.params, hold_command(self.params, s), s.delta)
+        if self._stop_steer is None:
+            return to_action(self.params, hold_command(self.params, s), s.delta)
+        steer = self._stop_steer  # a changed scene's stop: the hardest brake, the clearest steering
+        if abs(s.v) < 0.02:
+            self._stop_steer = None  # standing: that stop is over
+        return to_action(self.params, emergency_accel(self.params, s.v, s.a), steer)

@@ -191,3 +191,9 @@ class MirrorPolicyConfig(StrictModel):
     # to 7 plans between gains): at 6, 12 standard episodes that park at 8 gave up
     # (docs/mirror_planner.md, "Execution").
     patience: int = Field(8, ge=1)
+    # Clearances grow with the disagreement between the measured states and the model's
+    # one-step predictions (``common.innovation``; exactly zero without a perturbation):
+    # gain x its RMS in position, in steps, up to a most (policy._widen).
+    margin_gain: float = Field(4.0, ge=0, le=50)
+    margin_step: float = Field(0.02, gt=0, le=0.5)  # [m]
+    margin_max: float = Field(0.2, ge=0, le=1)  # [m]

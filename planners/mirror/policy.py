@@ -23,7 +23,9 @@ from mirrorpark_env.scenario import ScenarioGeometry
 from mirrorpark_env.vehicle import VehicleState, to_action
 
 from ..base import PlanStats, Policy
-from ..common.tracker import hold_accel
+from ..common.brake import clearest_stop
+from ..common.innovation import Innovation
+from ..common.tracker import emergency_accel, hold_accel
 from .config import MirrorPlannerConfig, MirrorPolicyConfig
 from .planner import MirrorPlanner
 from .plans import Plan
@@ -46,6 +48,7 @@ class MirrorPolicy(Policy):
         self.max_plans = pc.max_plans  # plans per episode before giving up
         self.patience = pc.patience  # plans without lowering the cost of standing still
         self.planner: MirrorPlanner | None = None
+        self.geometry: ScenarioGeometry | None = None
         self.plan: Plan | None = None
         self.k = 0
         self._step = 0  # control steps so far
@@ -57,7 +60,8 @@ class MirrorPolicy(Policy):
         once, as a car refuses a gap it has measured: status ``no_goal``, the car stays."""
         t0 = time.perf_counter()
         self.planner = MirrorPlanner(geometry, self.config)
-        g = geometry
+        self.geometry = g = geometry
+        self._stand_first: float | None = None  # brake to a stand on this steering first (a changed scene)
         fits = bool(iso_pose_exists(g.parking_type.value, g.slot_length, g.slot_width, g.vehicle))
         if fits:
             self.planner.prepare()
@@ -70,6 +74,9 @@ class MirrorPolicy(Policy):
         self.stats = [] if fits else [PlanStats(0.0, "no_goal", detail={"reason": "no ISO pose in this slot"})]
         self.plans: list[Plan] = []
         self.gave_up = not fits
+        self._innovation = Innovation(geometry.vehicle, self.config.core.dt)
+        self.planner_config = self.config  # the planner's settings now: its margins grow (``_widen``)
+        self._margin_level = 0  # margin steps added to the clearances (``_widen``)
         self._failures = 0
         self._failed_at: np.ndarray | None = None  # standing state of the last failed call
         self._stood: list[np.ndarray | None] = []  # the last two calls' standing states
@@ -80,8 +87,46 @@ class MirrorPolicy(Policy):
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         if self.planner is None:
             raise RuntimeError("MirrorPolicy: call reset(geometry) first")
-        s: VehicleState = info["vehicle_state"]
+        s = self._innovation.observe(info["vehicle_state"])  # the measurement itself, unless it is noisy
+        self._widen()
+        action = self._decide(s, info)
+        self._innovation.sent(action)
+        return action
+
+    def _widen(self) -> None:
+        """Keep the clearances above what the innovation says the car's pose may be off by:
+        ``margin_gain`` x its RMS, in steps of ``margin_step`` up to ``margin_max``, added to
+        the planned and checked clearances. A wider margin takes a new planner, and the plan
+        in hand (made with the narrower one) is dropped. Without a perturbation the
+        innovation is exactly zero: the margins stay as configured."""
+        pc = self.policy_config
+        extra = min(pc.margin_max, pc.margin_gain * self._innovation.position_rms)
+        level = math.floor(extra / pc.margin_step + 1e-9)
+        if level <= self._margin_level:
+            return
+        self._margin_level = level
+        core = self.config.core
+        m = level * pc.margin_step
+        self.planner_config = cfg = self.config.model_copy(
+            update={
+                "core": core.model_copy(
+                    update={"obstacle_margin": core.obstacle_margin + m, "check_margin": core.check_margin + m}
+                )
+            }
+        )
+        self.planner = MirrorPlanner(self.geometry, cfg)
+        self.planner.prepare()
+        self.plan = None
+
+    def _decide(self, s: VehicleState, info: dict[str, Any]) -> np.ndarray:
         self._step += 1
+        changed = self.changed_scene(info, self.geometry)
+        if changed is not None:
+            self._new_scene(changed, s)
+        if self._stand_first is not None:  # a changed scene: brake to a stand on the clearest steering
+            if abs(s.v) >= IDLE_SPEED:
+                return to_action(self.params, emergency_accel(self.params, s.v, s.a), self._stand_first)
+            self._stand_first = None
         if not self.gave_up and (
             self.plan is None or self.k >= len(self.plan.commands) or self._drifted(s) or self._idle(s)
         ):
@@ -91,6 +136,18 @@ class MirrorPolicy(Policy):
         a, d = self.plan.commands[self.k]
         self.k += 1
         return to_action(self.params, float(a), float(d))
+
+    def _new_scene(self, geometry: ScenarioGeometry, s: VehicleState) -> None:
+        """The scene changed (a late obstacle): the plan in hand did not know it. Brake to a
+        stand on the steering that keeps clearest of the new scene, then plan in it, with the
+        search for progress begun afresh."""
+        self.planner = MirrorPlanner(geometry, self.planner_config)
+        self.planner.prepare()
+        self.geometry = geometry
+        self.plan = None
+        self._stand_first = clearest_stop(geometry, s.as_array())
+        self._failures, self._failed_at, self._stood = 0, None, []
+        self._best, self._since_best, self._stuck = math.inf, 0, 0
 
     def _idle(self, s: VehicleState) -> bool:
         """The car stands and the rest of the plan would move it less than ``IDLE_TRAVEL``:

@@ -76,6 +76,7 @@ class RLPolicy(Policy):
     def reset(self, geometry: ScenarioGeometry) -> None:
         self.stats = []
         self.gave_up = False
+        self.geometry = geometry
         cfg = self.lidar_config
         self._lidar = Lidar(geometry.obstacles, cfg["rays"], cfg["max_range"]) if cfg else None
         self._centre = geometry.vehicle.center_offset
@@ -85,6 +86,10 @@ class RLPolicy(Policy):
         ranges, measured as the env measures them, where the env gives none."""
         if self._lidar is None or "lidar" in obs:
             return obs
+        changed = self.changed_scene(info, self.geometry)
+        if changed is not None:  # a late obstacle: the ring sees it from now on
+            self.geometry = changed
+            self._lidar = Lidar(changed.obstacles, self.lidar_config["rays"], self.lidar_config["max_range"])
         s = info["vehicle_state"]
         return {**obs, "lidar": self._lidar.read_body(s.x, s.y, s.theta, self._centre)}
 

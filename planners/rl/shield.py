@@ -84,6 +84,9 @@ class Shielded(Policy):
     def act(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         t0 = time.perf_counter()
         wanted = self.inner.act(obs, info)
+        changed = self.changed_scene(info, self.shield.g)
+        if changed is not None:  # a late obstacle: the filter keeps clear of it too
+            self.shield = Shield(changed, self.dt)
         action, how = self.shield.decide(info["vehicle_state"], wanted, getattr(self.inner, "second_choice", None))
         clear = how == "clear"
         self.overrides += int(not clear)
