@@ -105,15 +105,10 @@ class MirrorPolicy(Policy):
         if level <= self._margin_level:
             return
         self._margin_level = level
-        core = self.config.core
+        settings = self.config.core  # the core's settings (not the core)
         m = level * pc.margin_step
-        self.planner_config = cfg = self.config.model_copy(
-            update={
-                "core": core.model_copy(
-                    update={"obstacle_margin": core.obstacle_margin + m, "check_margin": core.check_margin + m}
-                )
-            }
-        )
+        wider = {"obstacle_margin": settings.obstacle_margin + m, "check_margin": settings.check_margin + m}
+        self.planner_config = cfg = self.config.model_copy(update={"core": settings.model_copy(update=wider)})
         self.planner = MirrorPlanner(self.geometry, cfg)
         self.planner.prepare()
         self.plan = None
