@@ -96,8 +96,9 @@ class MirrorPolicy(Policy):
     def _widen(self) -> None:
         """Keep the clearances above what the innovation says the car's pose may be off by:
         ``margin_gain`` x its RMS, in steps of ``margin_step`` up to ``margin_max``, added to
-        the planned and checked clearances. A wider margin takes a new planner, and the plan
-        in hand (made with the narrower one) is dropped. Without a perturbation the
+        the planned and checked clearances. A wider margin takes a new planner for the next
+        plan; the plan in hand, checked with the narrower one, runs on (dropping it at speed
+        left the car braking blind, into a slot's side). Without a perturbation the
         innovation is exactly zero: the margins stay as configured."""
         pc = self.policy_config
         extra = min(pc.margin_max, pc.margin_gain * self._innovation.position_rms)
@@ -111,7 +112,6 @@ class MirrorPolicy(Policy):
         self.planner_config = cfg = self.config.model_copy(update={"core": settings.model_copy(update=wider)})
         self.planner = MirrorPlanner(self.geometry, cfg)
         self.planner.prepare()
-        self.plan = None
 
     def _decide(self, s: VehicleState, info: dict[str, Any]) -> np.ndarray:
         self._step += 1
