@@ -100,6 +100,8 @@ class MirrorPolicy(Policy):
         plan; the plan in hand, checked with the narrower one, runs on (dropping it at speed
         left the car braking blind, into a slot's side). Without a perturbation the
         innovation is exactly zero: the margins stay as configured."""
+        if self.gave_up:  # no plan is asked for again (a slot without an ISO pose included)
+            return
         pc = self.policy_config
         extra = min(pc.margin_max, pc.margin_gain * self._innovation.position_rms)
         level = math.floor(extra / pc.margin_step + 1e-9)
