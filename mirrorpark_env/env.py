@@ -299,9 +299,9 @@ class MirrorParkEnv(gym.Env):
 
     def _add_obstacle(self, corners: np.ndarray) -> None:
         """A new obstacle part in the truth's scene and in the one the planners are told of."""
+        obstacles = ConvexSet.from_polygons([*self.geometry.obstacles.polygons, corners])  # the two scenes share it
         self.geometry, self.told_geometry = (
-            dataclasses.replace(g, obstacles=ConvexSet.from_polygons([*g.obstacles.polygons, corners]))
-            for g in (self.geometry, self.told_geometry)
+            dataclasses.replace(g, obstacles=obstacles) for g in (self.geometry, self.told_geometry)
         )
         self._free = False
         if self._lidar is not None:
