@@ -61,10 +61,8 @@ class TrackingPolicy(Policy):
         0 standing) the way the car moves there, used where ``prices_start_gear``."""
 
     def reset(self, geometry: ScenarioGeometry) -> None:
-        self.prepare(geometry)
-        self.geometry = geometry
+        self._take_scene(geometry)
         self.params = geometry.vehicle
-        self._stopping = StoppingCheck(geometry) if self.stopping_check else None
         self.safety_stops = 0
         self.stats = []
         self.paths: list[Path] = []
@@ -105,14 +103,18 @@ class TrackingPolicy(Policy):
             return self._brake(s)
         return action
 
+    def _take_scene(self, geometry: ScenarioGeometry) -> None:
+        """What depends on the scene: the planner's preparation and the stopping check."""
+        self.prepare(geometry)
+        self.geometry = geometry
+        self._stopping = StoppingCheck(geometry) if self.stopping_check else None
+
     def _new_scene(self, geometry: ScenarioGeometry, s: VehicleState) -> None:
         """The scene changed (a late obstacle): prepare for it, brake to a stand on the
         steering that keeps clearest of it and plan again there; the path being tracked was
         planned without the new obstacle."""
-        self.prepare(geometry)
+        self._take_scene(geometry)
         self._stop_steer = clearest_stop(geometry, s.as_array())
-        self.geometry = geometry
-        self._stopping = StoppingCheck(geometry) if self.stopping_check else None
         self.tracker = None
         self._replan_when_stopped = True
         self._stand_first = True
