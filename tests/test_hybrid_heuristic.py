@@ -159,6 +159,36 @@ def test_the_cost_to_go_is_built_once_and_rebuilt_only_for_a_start_beyond_its_bo
     assert heuristic._CACHE.builds == before + 2
 
 
+def test_a_cost_to_go_built_for_another_start_reads_as_one_built_for_this_start():
+    """The search must not depend on the calls a process made before: a start that reuses a
+    V built for a farther start reads, at every pose, what a V built for itself gives
+    (values up to its own bound, the bound beyond), and a fresh V's bound is the one
+    ``own_bound`` computes."""
+    lay = turn_around(aisle=5.2)  # a slot no other test builds
+    g = lay.build()
+    cfg, rule = HybridAStar(g).lattice, HybridAStarConfig().lattice_stop
+    far, near = (-6.0, 0.0, 0.0), (1.5, 2.0, math.radians(160))
+    box = heuristic.scene_box(g, cfg)
+    fresh_far = CostToGo(g, cfg, stop_near=far, stop_rule=rule, box=box)
+    fresh_near = CostToGo(g, cfg, stop_near=near, stop_rule=rule, box=box)
+    for V, start in ((fresh_far, far), (fresh_near, near)):
+        assert heuristic.own_bound(V, start, rule) == V.bound
+    assert fresh_near.bound < fresh_far.bound
+    heuristic._CACHE._items.clear()
+    built_far = CostToGoHeuristic(g, cfg, far, rule)
+    reused = CostToGoHeuristic(g, cfg, near, rule)
+    assert reused.V is built_far.V and reused.bound == fresh_near.bound
+    heuristic._CACHE._items.clear()
+    own = CostToGoHeuristic(g, cfg, near, rule)
+    assert own.V is not built_far.V
+    rng = np.random.default_rng(5)
+    x0, x1, y0, y1 = box
+    poses = np.column_stack([rng.uniform(x0, x1, 4000), rng.uniform(y0, y1, 4000), rng.uniform(-4, 4, 4000)])
+    values = [(reused(*p, gear), own(*p, gear)) for p in poses for gear in (-1, 0, 1)]
+    assert all(a == b for a, b in values)
+    assert sum(a < reused.bound for a, _ in values) > 1000  # most poses read exact values
+
+
 @pytest.mark.parametrize(
     "case_id",
     [

@@ -68,6 +68,8 @@ class HybridAStarConfig(StrictModel):
             raise ValueError(f"n_steer: must be odd (straight included), got {self.n_steer}")
         if self.min_step > self.step:
             raise ValueError(f"min_step: must be <= step={self.step} m, got {self.min_step}")
+        if self.lattice_stop[0] < 1 or self.lattice_stop[1] < 0:
+            raise ValueError(f"lattice_stop: must be (>= 1, >= 0 m), got {self.lattice_stop}")
         if self.sample_step > self.step:
             raise ValueError(f"sample_step: must be <= step={self.step} m, got {self.sample_step}")
         return self

@@ -116,8 +116,10 @@ class CostToGoHeuristic:
     Built once per slot and kept for the process's later calls (``_CACHE``), it is built only
     as far as the search needs it: its Dijkstra stops at ``rule[0]`` x V(start) + ``rule[1]``
     (``CostToGo.bound``), beyond which it reads the bound (V is at least that there). A call
-    from a start beyond the bound builds it again for that start. Where the lattice finds no
-    way at all (inf), the caller falls back to a 2D distance.
+    reads a V built for another start only up to its own start's bound (``own_bound``), so
+    that it reads what a V built for it would give: the search never depends on which calls
+    the process made before. A start beyond a V's bound builds it again. Where the lattice
+    finds no way at all (inf), the caller falls back to a 2D distance.
     """
 
     def __init__(self, geometry: ScenarioGeometry, config: CostToGoConfig, start, rule: tuple[float, float]) -> None:
@@ -127,17 +129,12 @@ class CostToGoHeuristic:
             geometry,
             settings,
             lambda: CostToGo(geometry, config, stop_near=start, stop_rule=rule, box=box),
-            self._serves(start),
+            lambda held: own_bound(held, start, rule) <= held.bound,
         )
-        self.table, self.bound = V.V, V.bound
+        self.table, self.bound = V.V, own_bound(V, start, rule)
         self.res, self.dth, self.nh, self.ny, self.nx = V.cfg.xy_resolution, V.dth, V.nh, V.ny, V.nx
         self.tx, self.ty, self.tth = V.origin
         self.i0, self.j0 = V.i0, V.j0
-
-    @staticmethod
-    def _serves(start):
-        """Whether a V already built knows V exactly at ``start`` (or has no bound)."""
-        return lambda V: V.bound == math.inf or V.at(start)[0] <= V.bound
 
     def __call__(self, x: float, y: float, th: float, gear: int) -> float:
         """V at the pose, arrived in ``gear`` (+1, -1; 0: standing, either); beyond the bound,
@@ -147,19 +144,30 @@ class CostToGoHeuristic:
         if not (0 <= i < self.nx and 0 <= j < self.ny):
             return self.bound
         h = math.floor((th - self.tth) / self.dth + 0.5) % self.nh
-        v = _read(self.table, i, j, h, gear, self.ny, self.nx, self.nh)
-        return float(v) if v <= self.bound else self.bound
+        return float(_read(self.table, i, j, h, gear, self.ny, self.nx, self.nh, self.bound))
+
+
+def own_bound(V: CostToGo, start, rule: tuple[float, float]) -> float:
+    """The bound a V built for ``start`` would have: ``rule[0]`` x the least V of the cells
+    near the start + ``rule[1]`` (the cost at which its Dijkstra settles the first of them;
+    inf where none is reached: it would run to the end). Exact from a V whose own bound is at
+    least that: its values up to its bound are exact."""
+    near = V._near(start)
+    c = float(V.V[near].min()) if len(near) else math.inf
+    return rule[0] * c + rule[1] if c < math.inf else math.inf
 
 
 @njit(cache=True)
-def _read(table, i, j, h, gear, ny, nx, nh):  # pragma: no cover - compiled
-    """``CostToGo.at``'s value at cell (i, j, h) arrived in ``gear`` (0: either): its own
-    cell's, or where that is inf the lowest of its neighbours (one cell each way)."""
+def _read(table, i, j, h, gear, ny, nx, nh, bound):  # pragma: no cover - compiled
+    """``CostToGo.at``'s value at cell (i, j, h) arrived in ``gear`` (0: either), read up
+    to ``bound``: its own cell's, or where that is above the bound (or inf) the lowest of its
+    neighbours (one cell each way); at most ``bound`` (V is at least that beyond it). Values
+    above the bound are ignored, not read: they depend on how far the V was built."""
     lo, hi = (0, 1) if gear == 0 else ((1, 1) if gear > 0 else (0, 0))
     best = math.inf
     for c in range(lo, hi + 1):
         best = min(best, table[(i * ny + j) * nh + h, c])
-    if best < math.inf:
+    if best <= bound:
         return best
     for di in (0, -1, 1):
         for dj in (0, -1, 1):
@@ -170,4 +178,4 @@ def _read(table, i, j, h, gear, ny, nx, nh):  # pragma: no cover - compiled
                 s = (ii * ny + jj) * nh + (h + dh) % nh
                 for c in range(lo, hi + 1):
                     best = min(best, table[s, c])
-    return best
+    return min(best, bound)
