@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import shapely
 from fixed_cases import EASY_CASES
+from ompl import base as ob
 
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env import Scenario, VehicleParams
@@ -54,7 +55,7 @@ def test_reeds_shepp_segments_agree_with_ompl():
     length, paths that end at the goal with the car's curvature, and ompl's own poses
     except where two words tie for the optimum (ompl then keeps whichever rounding favours)."""
     rs = ReedsShepp(R)
-    space = rs.space
+    space = ob.ReedsSheppStateSpace(R)
     s_a, s_b, s_c = space.allocState(), space.allocState(), space.allocState()
     rng = np.random.default_rng(1)
     same = 0
@@ -79,6 +80,29 @@ def test_reeds_shepp_segments_agree_with_ompl():
             ref.append((s_c.getX(), s_c.getY()))
         same += np.abs(np.array(ref)[1:-1] - poses[1:-1, :2]).max(initial=0.0) < 1e-6
     assert same >= 0.9 * 400
+
+
+def test_the_compiled_distance_is_ompls_bit_for_bit_and_place_one_is_places():
+    """``reeds_shepp.distance`` replays ompl's comparisons: its lengths equal ompl's exactly,
+    on random poses and on the aligned and mirrored poses where words tie; ``place_one``
+    (inside the compiled search) gives ``place``'s poses."""
+    space = ob.ReedsSheppStateSpace(R)
+    s_a, s_b = space.allocState(), space.allocState()
+    rng = np.random.default_rng(2)
+    cases = [np.array([*rng.uniform(-8, 8, 2), rng.uniform(-4, 4)]) for _ in range(4000)]
+    cases += [
+        np.array([x, y, th]) for x in (-2.0, 0.0, 1.5) for y in (-1.0, 0.0, 1.0) for th in (0.0, math.pi, -math.pi / 2)
+    ]
+    for n, b in enumerate(cases):
+        a = np.array([0.3, -0.2, 0.1]) if n % 2 else np.zeros(3)
+        s_a.setXY(*a[:2]), s_a.setYaw(a[2]), s_b.setXY(*b[:2]), s_b.setYaw(b[2])
+        assert reeds_shepp.distance(*a, *b, R) == space.distance(s_a, s_b)
+        word, lengths, total = reeds_shepp.solve(*a, *b, R)
+        kinds, segs = reeds_shepp.path(a, b, R)
+        assert total == pytest.approx(sum(abs(v) for v in segs), rel=1e-12)
+        want = reeds_shepp.place(a, [b], [(kinds, segs)], R, 0.05)[0]
+        got = reeds_shepp.place_one(*a, b, word, lengths, R, 0.05)
+        assert got.shape == want.shape and np.abs(got - want).max() <= 1e-12
 
 
 def test_grid_distance_is_a_lower_bound_around_a_wall():

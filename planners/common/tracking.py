@@ -16,6 +16,7 @@ cusps, which a learner that sees only the state can imitate.
 
 from __future__ import annotations
 
+import time
 from abc import abstractmethod
 from typing import Any
 
@@ -104,8 +105,11 @@ class TrackingPolicy(Policy):
         return action
 
     def _take_scene(self, geometry: ScenarioGeometry) -> None:
-        """What depends on the scene: the planner's preparation and the stopping check."""
+        """What depends on the scene: the planner's preparation (timed: ``setup_time_s``) and
+        the stopping check."""
+        t0 = time.perf_counter()
         self.prepare(geometry)
+        self.setup_time_s = time.perf_counter() - t0
         self.geometry = geometry
         self._stopping = StoppingCheck(geometry) if self.stopping_check else None
 

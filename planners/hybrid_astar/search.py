@@ -16,7 +16,6 @@ bounds the sweep in between (no corner can clip an obstacle between samples).
 
 from __future__ import annotations
 
-import heapq
 import math
 import time
 from dataclasses import dataclass
@@ -28,14 +27,17 @@ from mirrorpark_env.criteria import SuccessCriteria
 from mirrorpark_env.scenario import ScenarioGeometry
 
 from ..base import PlanStats
-from ..common.clearance import gaps, required_gap
+from ..common.clearance import START_SLACK, gap_kernel, gaps
 from ..common.cost_to_go_config import PriceConfig
 from ..common.path import Path, arc
 from ..common.reeds_shepp import ReedsShepp
+from . import kernel
 from .config import HybridAStarConfig
 from .heuristic import CostToGoHeuristic, GridDistance
 
 __all__ = ["HybridAStar", "HybridAStarConfig"]
+
+_SLICE = 500  # expansions between looks at the wall-clock safety net
 
 
 @dataclass
@@ -73,6 +75,12 @@ class HybridAStar:
         self.n_fine_th = int(round(2 * math.pi / self.fine_th_res))
         self.goal_heading = math.radians(cfg.goal_heading_deg)
         self._primitives = self._make_primitives()
+        self._keyp = np.array(
+            [cfg.fine_gap, cfg.fine_xy_resolution, self.fine_th_res, self.n_fine_th]
+            + [cfg.xy_resolution, self.th_res, self.n_th]
+        )
+        self._gapargs = _gap_args(self.checker)
+        _warm_up()
         self._grids: dict[tuple, GridDistance] = {}
         price = PriceConfig(reverse_cost=cfg.reverse_cost - 1.0, steer_cost=cfg.steer_cost, switch_cost=cfg.switch_cost)
         self.lattice = cfg.lattice.model_copy(update={"price": price})
@@ -106,22 +114,6 @@ class HybridAStar:
     def _gaps(self, poses: np.ndarray) -> np.ndarray:
         return gaps(self.checker, poses)
 
-    def _in_window(self, poses: np.ndarray) -> np.ndarray:
-        x0, x1, y0, y1 = self.window
-        return (poses[:, 0] >= x0) & (poses[:, 0] <= x1) & (poses[:, 1] >= y0) & (poses[:, 1] <= y1)
-
-    def path_is_clear(self, poses: np.ndarray) -> bool:
-        """Whether poses at most ``sample_step`` apart certify a sweep clear by ``clearance``."""
-        return bool((self._gaps(poses) >= self._required(poses)).all())
-
-    def _required(self, poses: np.ndarray) -> np.ndarray | float:
-        """Gap each sampled pose must keep: ``required_gap``, but within ``start_relief`` of a
-        start that is closer only ``start_gap_share`` of the start's gap (``common.clearance``;
-        grid starts may touch the road's edges, and the car must be able to leave them)."""
-        cfg = self.cfg
-        floor = cfg.start_gap_share * self._start_gap if cfg.start_gap_share < 1 else math.inf
-        return required_gap(poses, self._start, self._start_gap, self.required_gap, cfg.start_relief, floor)
-
     def in_goal_set(self, pose) -> bool:
         """ISO success at ``pose`` (standing still), with ``goal_margin`` and heading to spare."""
         x, y, th = (float(v) for v in pose)
@@ -152,29 +144,22 @@ class HybridAStar:
         return [self.goal] + [(x + d * c, y + d * s, th) for d in offsets[: self.cfg.goal_shots]]
 
     def _shot(self, pose) -> np.ndarray | None:
-        """A clear Reeds-Shepp path from ``pose`` into the goal set: to the target, else (from
-        within ``goal_shot_range`` of it) to the other goal poses, nearest first."""
-        tail = self._analytic(pose, self.goal)
-        if tail is not None or len(self.goal_poses) == 1:
-            return tail
-        if self.rs.distance(pose, self.goal) > self.cfg.goal_shot_range:
-            return None
-        for goal in sorted(self.goal_poses[1:], key=lambda g: self.rs.distance(pose, g)):
-            tail = self._analytic(pose, goal)
-            if tail is not None:
-                return tail
-        return None
+        """A clear Reeds-Shepp path from ``pose`` into the goal set (``kernel.shot``), with the
+        call's window and required gaps (``plan`` sets them)."""
+        ok, tail = kernel.shot(*(float(v) for v in pose[:3]), *self._shot_args())
+        return tail if ok else None
 
-    def _analytic(self, pose, goal) -> np.ndarray | None:
-        """A clear Reeds-Shepp path from ``pose`` to ``goal``, or None."""
-        rs_path = self.rs.path(pose, goal)  # solved once, sampled at two spacings
-        coarse = self.rs.place(pose, goal, rs_path, 4 * self.cfg.sample_step)
-        if (self._gaps(coarse) < np.minimum(self._required(coarse), self.cfg.clearance)).any() or not self._in_window(
-            coarse
-        ).all():
-            return None  # a pose that close already rules the path out
-        fine = self.rs.place(pose, goal, rs_path, self.cfg.sample_step)
-        return fine if self.path_is_clear(fine) else None
+    def _shot_args(self) -> tuple:
+        cfg = self.cfg
+        shotp = np.array([self.rs.radius, cfg.sample_step, cfg.clearance, cfg.goal_shot_range])
+        return np.array(self.goal_poses, float), shotp, self._gapargs, self._req(), np.array(self.window, float)
+
+    def _req(self) -> np.ndarray:
+        """``kernel._required``'s (need, need near the start, start x, y, relief radius)."""
+        cfg = self.cfg
+        floor = cfg.start_gap_share * self._start_gap if cfg.start_gap_share < 1 else math.inf
+        near = min(self.required_gap, floor, max(self._start_gap, 0.0) - START_SLACK)
+        return np.array([self.required_gap, near, self._start[0], self._start[1], cfg.start_relief])
 
     # -- search ---------------------------------------------------------------------
     def _window(self, start) -> tuple[float, float, float, float]:
@@ -185,20 +170,6 @@ class HybridAStar:
         lo, hi = pts.min(axis=0) - m, pts.max(axis=0) + m
         sb = g.bounds
         return (max(sb[0], lo[0]), min(sb[1], hi[0]), max(sb[2], lo[1]), min(sb[3], hi[1]))
-
-    def _key(self, pose, gap: float) -> tuple[int, int, int, int]:
-        """The cell of ``pose``: coarse, or fine where its gap to the nearest obstacle is
-        below ``fine_gap`` (the first entry tells the two apart)."""
-        if gap < self.cfg.fine_gap:
-            r, th_res, n_th, level = self.cfg.fine_xy_resolution, self.fine_th_res, self.n_fine_th, 1
-        else:
-            r, th_res, n_th, level = self.cfg.xy_resolution, self.th_res, self.n_th, 0
-        return (
-            level,
-            int(math.floor(pose[0] / r)),
-            int(math.floor(pose[1] / r)),
-            int(math.floor(pose[2] / th_res + 0.5)) % n_th,
-        )
 
     def _grid(self, goal) -> GridDistance:
         key = (self.window, goal)
@@ -268,127 +239,133 @@ class HybridAStar:
         return done(None, status)
 
     def _search(self, origin, goal, backward: bool, limit: int, deadline: float, counts: dict[str, int]):
-        """One A* search from ``origin``, until the call's expansions reach ``limit``; (poses or
-        None, status, cost).
+        """One A* search from ``origin`` (``kernel.run``), until the call's expansions reach
+        ``limit``; (poses or None, status, cost).
 
         Forward, a node in the ISO goal set also ends it; backward, the gear costs are
-        swapped, since the path will be driven the other way.
+        swapped, since the path will be driven the other way. Forward, after
+        ``plain_expansions`` the cost to go takes over (built then, if not yet).
         """
         cfg = self.cfg
-        h = self._heuristic(goal, None)
-        # Forward, after ``plain_expansions`` the cost to go takes over (built then, if not yet)
-        sharpen = not backward and cfg.heuristic == "cost_to_go"
-        sharpen_at = counts["expansions"] + cfg.plain_expansions if sharpen else -1
+        sharpen_at = counts["expansions"] + cfg.plain_expansions
+        if backward or cfg.heuristic != "cost_to_go":
+            sharpen_at = -1
         forward_cost, reverse_cost = (cfg.reverse_cost, 1.0) if backward else (1.0, cfg.reverse_cost)
-
-        origin_key = self._key(origin, float(self._gaps(np.array([origin]))[0]))
-        nodes: list[_Node] = [_Node(origin, 0.0, -1, 0, 0.0, None, origin_key)]
-        self._keep_tree(backward, nodes)
-        open_heap = [(h(origin), 0, 0)]
-        best_g = {origin_key: 0.0}
-        closed: set[tuple[int, ...]] = set()
         offsets, gears, steers = self._primitives
+        cap = 1 + (limit - counts["expansions"]) * len(gears)  # each expansion adds one node a primitive at most
+        fl, it = np.empty((cap, 5)), np.empty((cap, 5), np.int64)
+        hf, ht, hn = np.empty(cap), np.empty(cap, np.int64), np.empty(cap, np.int64)
+        ctr = np.array([1, 0, counts["expansions"], 0], np.int64)
+        best_g, closed = kernel.new_maps()
+        gap = float(self._gaps(np.array([origin]))[0])
+        key = kernel.cell_key(*origin, gap, self._keyp)
+        fl[0], it[0] = (*origin, 0.0, 0.0), (-1, 0, -1, 0, key)
+        best_g[key] = 0.0
+        heur = self._heur_args(goal, None)
+        kernel.push(hf, ht, hn, ctr, kernel.estimate(*origin, 0, *heur), 0, 0)
+        costs = np.array([forward_cost, reverse_cost, cfg.steer_cost, cfg.steer_change_cost, cfg.switch_cost])
+        costs = np.append(costs, [self.sample_spacing, self.min_samples])
+        goals, shotp, gapargs, req, window = self._shot_args()
+        if backward:  # shots to the start alone
+            goals = np.array([goal[:3]], float)
+        goalp, body, edges, spec = self._goal_args()
         status = "no_path"
-        while open_heap:
-            if counts["expansions"] >= limit:
-                status = "budget"
-                break
-            if time.perf_counter() > deadline:
-                status = "wall_clock"
-                break
-            if counts["expansions"] == sharpen_at:
-                h, open_heap = self._sharpen(origin, goal, nodes, open_heap)
-            _, _, i = heapq.heappop(open_heap)
-            node = nodes[i]
-            key = node.key
-            if key in closed:
+        while True:
+            stops = np.array([limit, ctr[kernel.N_EXP] + _SLICE, sharpen_at, cfg.analytic_every], np.int64)
+            code, i, tail = kernel.run(
+                fl, it, hf, ht, hn, ctr, best_g, closed, stops, backward, self._primitives, costs, self._keyp,
+                gapargs, req, window, *heur, goalp, body, edges, spec, goals, shotp,
+            )  # fmt: skip
+            counts["expansions"] = int(ctr[kernel.N_EXP])
+            if code == kernel.SLICE and time.perf_counter() <= deadline:
                 continue
-            closed.add(key)
-            counts["expansions"] += 1
-            if not backward and i > 0 and self.in_goal_set(node.pose):
-                counts["nodes"] += len(nodes)
-                return self._trace(nodes, i, None), "ok", node.g
-            if (len(closed) - 1) % cfg.analytic_every == 0:
-                tail = self._analytic(node.pose, goal) if backward else self._shot(node.pose)
-                if tail is not None:
-                    counts["nodes"] += len(nodes)
-                    return self._trace(nodes, i, tail), "ok", node.g
-            # Expand: every primitive's samples at once, one collision call.
-            x, y, th = node.pose
-            c, s = math.cos(th), math.sin(th)
-            wx = x + c * offsets[..., 0] - s * offsets[..., 1]
-            wy = y + s * offsets[..., 0] + c * offsets[..., 1]
-            wt = th + offsets[..., 2]
-            poses = np.stack((wx, wy, wt), axis=-1)  # (P, m, 3)
-            flat = poses.reshape(-1, 3)
-            gap = self._gaps(flat)
-            ok = (gap >= self._required(flat)) & self._in_window(flat)
-            ok = ok.reshape(poses.shape[:2])
-            gap = gap.reshape(poses.shape[:2])
-            # A primitive that runs into an obstacle is cut short at its last clear sample
-            # (when it still covers min_step): the short moves of a tight manoeuvre.
-            n_clear = np.where(ok.all(axis=1), ok.shape[1], ok.argmin(axis=1))
-            for p in np.flatnonzero(n_clear >= self.min_samples):
-                k = int(n_clear[p])
-                end = poses[p, k - 1]
-                child_key = self._key(end, float(gap[p, k - 1]))
-                if child_key in closed:
-                    continue
-                gear = int(gears[p])
-                length = k * self.sample_spacing
-                g = node.g + length * (forward_cost if gear > 0 else reverse_cost)
-                g += length * cfg.steer_cost * abs(steers[p])
-                if node.gear != 0:
-                    g += cfg.steer_change_cost * abs(steers[p] - node.steer)
-                    if gear != node.gear:
-                        g += cfg.switch_cost
-                if g >= best_g.get(child_key, math.inf):
-                    continue
-                pose = (float(end[0]), float(end[1]), float(end[2]))
-                hv = h(pose, gear)
-                if not math.isfinite(hv):
-                    continue
-                best_g[child_key] = g
-                nodes.append(_Node(pose, g, i, gear, float(steers[p]), poses[p, :k], child_key))
-                heapq.heappush(open_heap, (g + hv, len(nodes) - 1, len(nodes) - 1))
-        counts["nodes"] += len(nodes)
+            if code == kernel.SHARPEN:
+                self.car_heuristic = CostToGoHeuristic(self.geometry, self.lattice, origin, cfg.lattice_stop)
+                heur = self._heur_args(goal, self.car_heuristic)
+                kernel.rerank(hf, ht, hn, ctr, fl, it, *heur)
+                sharpen_at = -1
+                continue
+            break
+        n = int(ctr[kernel.N_NODES])
+        counts["nodes"] += n
+        self._keep_tree(backward, fl[:n], it[:n])
+        if code in (kernel.FOUND, kernel.SHOT):
+            return self._trace(fl, it, i, tail if code == kernel.SHOT else None), "ok", float(fl[i, kernel.G])
+        status = {kernel.BUDGET: "budget", kernel.NO_PATH: "no_path", kernel.SLICE: "wall_clock"}[code]
         return None, status, math.nan
 
-    def _sharpen(self, start, goal, nodes: list[_Node], open_heap: list):
-        """The cost to go's h, and the open nodes ranked by it (``CostToGoHeuristic``, built
-        here by the call that first needs it: a call that ends before builds nothing)."""
-        self.car_heuristic = CostToGoHeuristic(self.geometry, self.lattice, start, self.cfg.lattice_stop)
-        h = self._heuristic(goal, self.car_heuristic)
-        ranked = []
-        for _, tie, i in open_heap:
-            hv = h(nodes[i].pose, nodes[i].gear)
-            if math.isfinite(hv):
-                ranked.append((nodes[i].g + hv, tie, i))
-        heapq.heapify(ranked)
-        return h, ranked
+    def _heur_args(self, goal, car: CostToGoHeuristic | None) -> tuple:
+        """``kernel.estimate``'s (heur, grid, table, carp): the weight x the larger of the
+        Reeds-Shepp length to ``goal`` and ``car``'s cost to go (where it knows a way) or else
+        the 2D grid distance."""
+        grid = self._grid(goal)
+        w = self.cfg.heuristic_weight
+        heur = np.array([*goal[:3], self.rs.radius, w, car is not None, grid.x0, grid.y0, grid.res])
+        if car is None:
+            return heur, grid.dist, np.zeros((1, 2)), np.zeros(11)
+        carp = (car.res, car.dth, car.nh, car.ny, car.nx, car.tx, car.ty, car.tth, car.i0, car.j0, car.bound)
+        return heur, grid.dist, car.table, np.array(carp, float)
 
-    def _heuristic(self, goal, car: CostToGoHeuristic | None):
-        """h(pose, gear): the weight x the larger of the Reeds-Shepp length to ``goal`` and
-        ``car``'s cost to go (where it knows a way) or else the 2D grid distance."""
-        grid, w = self._grid(goal), self.cfg.heuristic_weight
+    def _goal_args(self) -> tuple:
+        """``kernel.in_goal_set``'s (goalp, body, edges, spec), from the success criteria."""
+        cr = self.criteria
+        need = cr.min_margin + self.cfg.goal_margin
+        tx, ty = self.goal[:2]
+        goalp = np.array([cr.target_heading, self.goal_heading, cr.no_slot, need, getattr(cr, "_pos_tol", 0.0), tx, ty])
+        if cr.no_slot:
+            return goalp, np.zeros((4, 2)), np.zeros((1, 3)), np.zeros((1, 2), np.int64)
+        spec = np.array([(-1 if c is None else c, e) for c, e in cr._spec], np.int64)
+        return goalp, np.array(cr._body, float), np.array(cr._edges, float), spec
 
-        def h(pose, gear: int = 0) -> float:
-            est = car(pose[0], pose[1], pose[2], gear) if car is not None else math.inf
-            if est == math.inf:
-                est = grid(pose[0], pose[1])
-            return w * max(self.rs.distance(pose, goal), est)
+    def _keep_tree(self, backward: bool, fl: np.ndarray, it: np.ndarray) -> None:
+        """With ``keep_trees``, the search's nodes as ``_Node``s, for figures."""
+        if not self.keep_trees:
+            return
+        nodes = [_Node(tuple(fl[0, :3]), 0.0, -1, 0, 0.0, None, ())]
+        nodes += [
+            _Node(tuple(fl[i, :3]), float(fl[i, kernel.G]), int(it[i, kernel.PARENT]), int(it[i, kernel.GEAR]),
+                  float(fl[i, kernel.STEER]), self._samples(fl, it, i), (int(it[i, kernel.KEY]),))
+            for i in range(1, len(fl))
+        ]  # fmt: skip
+        self.last_trees.append((backward, nodes))
 
-        return h
+    def _samples(self, fl: np.ndarray, it: np.ndarray, i: int) -> np.ndarray:
+        """Node ``i``'s poses from its parent (excluded) to it (included), as the kernel made them."""
+        x, y, th = fl[it[i, kernel.PARENT], :3]
+        c, s = math.cos(th), math.sin(th)
+        o = self._primitives[0][it[i, kernel.PRIM], : it[i, kernel.KEPT]]
+        return np.stack((x + c * o[:, 0] - s * o[:, 1], y + s * o[:, 0] + c * o[:, 1], th + o[:, 2]), axis=-1)
 
-    def _keep_tree(self, backward: bool, nodes: list[_Node]) -> None:
-        if self.keep_trees:  # the list grows as the search runs: the figure sees all of it
-            self.last_trees.append((backward, nodes))
-
-    @staticmethod
-    def _trace(nodes: list[_Node], i: int, tail: np.ndarray | None) -> np.ndarray:
+    def _trace(self, fl: np.ndarray, it: np.ndarray, i: int, tail: np.ndarray | None) -> np.ndarray:
         parts = [] if tail is None else [tail[1:]]
         while i > 0:
-            parts.append(nodes[i].samples)
-            i = nodes[i].parent
-        parts.append(np.array([nodes[0].pose]))
+            parts.append(self._samples(fl, it, i))
+            i = int(it[i, kernel.PARENT])
+        parts.append(fl[:1, :3])
         return np.concatenate(parts[::-1])
+
+
+def _gap_args(checker) -> tuple:
+    """``kernels._gaps``'s obstacle arguments, with arrays of the right rank for no obstacles."""
+    args = gap_kernel(checker).args
+    if len(checker.obstacles) == 0:
+        return (*args[:3], np.zeros((0, 1, 2)), np.zeros((0, 1)), np.zeros((0, 1)), np.zeros((0, 1, 2)))
+    return args
+
+
+_WARM = [False]
+
+
+def _warm_up() -> None:
+    """Load the compiled kernels once per process (about 0.8 s from numba's cache, measured),
+    so that no plan call pays for it: a short search on a small scene that takes every
+    compiled path (the cost to go from the first forward expansion). Counted where the
+    planner is built: ``setup_ms`` of a process's first episode."""
+    if _WARM[0]:
+        return
+    _WARM[0] = True
+    from mirrorpark_env import Scenario
+
+    g = Scenario.from_degrees("parallel", 5.0, 6.0, 2.5, 0.0, 1.5).build()
+    cfg = HybridAStarConfig(first="forward", plain_expansions=0, max_expansions=40, goal_shots=1)
+    HybridAStar(g, cfg).plan((g.start.x, g.start.y, g.start.theta))

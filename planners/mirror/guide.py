@@ -126,7 +126,7 @@ class GuideSearch:
             if not chunk or checked >= limit:
                 break
             vias = [tails[k][0] for _, _, k in chunk]
-            paths = [reeds_shepp.path(pose, v, r, d) for v, (_, d, _) in zip(vias, chunk)]
+            paths = [reeds_shepp.path(pose, v, r) for v in vias]
             coarse = reeds_shepp.place(pose, vias, paths, r, cfg.coarse_step)
             ok = self._clear_many(coarse, start_gap, gap=0.0)  # a cheap first look (most fail it)
             passed = [i for i in range(len(chunk)) if ok[i]]

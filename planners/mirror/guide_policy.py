@@ -31,9 +31,7 @@ class GuideOnlyPolicy(TrackingPolicy):
         self.search: GuideSearch | None = None
 
     def prepare(self, geometry: ScenarioGeometry) -> None:
-        t0 = time.perf_counter()
         self.search = prepared_search(geometry, self.guide_config)  # the slot's part, as the mirror policy's
-        self.setup_time_s = time.perf_counter() - t0
 
     def find_path(self, pose, gear: int = 0) -> tuple[Path | None, PlanStats]:
         t0 = time.perf_counter()
