@@ -45,6 +45,29 @@ def test_noise_shows_in_the_innovation():
     assert inn.noisy and NOISE_FLOOR < inn.position_rms < 0.12
 
 
+def test_the_estimated_speed_leans_on_the_model_under_noise():
+    """Under white speed noise the estimate's speed error is a fraction of the reading's
+    (``speed_gain`` 0.1 averages over about ten steps), and the pose's error is below the
+    reading's too; both measured against the true state the environment keeps."""
+    noise = {"perturb": {"name": "n", "noise": {"position_std": 0.03, "speed_std": 0.05}}}
+    env = gym.make("MirrorPark-v0", config=noise)
+    _, info = env.reset(options={"scenario": CASE})
+    inn = Innovation(P)
+    err_read, err_est = [], []
+    for _ in range(80):
+        est = inn.observe(info["vehicle_state"])
+        if inn.noisy:
+            true = info["true_state"]
+            err_read.append(info["vehicle_state"].v - true.v)
+            err_est.append(est.v - true.v)
+        action = to_action(P, 0.3, 0.1)
+        inn.sent(action)
+        _, _, term, _, info = env.step(action)
+        assert not term
+    rms = lambda e: float(np.sqrt(np.mean(np.square(e))))  # noqa: E731
+    assert len(err_est) > 50 and rms(err_est) < 0.5 * rms(err_read)
+
+
 @pytest.mark.parametrize(("config", "widened"), [(None, False), ({"perturb": "mild"}, True)])
 def test_mirror_widens_its_clearances_only_under_noise(config, widened):
     env = gym.make("MirrorPark-v0", config=config)

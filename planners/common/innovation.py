@@ -7,6 +7,9 @@ measurement to the last bit, the innovation is exactly zero and nothing here cha
 policy does. Measurement noise, actuator and model errors show in it. ``Innovation`` keeps its
 running RMS in position (``position_rms``) and, once that is above ``noise_floor``, blends
 prediction and measurement into a smoothed estimate of the state (a complementary filter).
+The speed leans on the prediction more than the pose does: a brake's hold law acting on a
+speed reading that drifts (odometry noise correlated over a second) holds the car at that
+drift, and the truth model has no friction to stop such a creep (measured: docs/robustness.md).
 """
 
 from __future__ import annotations
@@ -23,10 +26,18 @@ NOISE_FLOOR = 0.002  # [m] RMS position innovation above which the measurement c
 class Innovation:
     """The running disagreement between the measured states and the model's one-step predictions."""
 
-    def __init__(self, params: VehicleParams, dt: float = 0.1, gain: float = 0.5, noise_floor: float = NOISE_FLOOR):
+    def __init__(
+        self,
+        params: VehicleParams,
+        dt: float = 0.1,
+        gain: float = 0.5,
+        speed_gain: float = 0.1,
+        noise_floor: float = NOISE_FLOOR,
+    ):
         self.params = params
         self.model = TruthModel(params, dt)
-        self.gain = gain  # the measurement's weight in the estimate, where it is noisy
+        self.gain = gain  # the measurement's weight in the estimated pose, where it is noisy
+        self.speed_gain = speed_gain  # ... and in the estimated speed
         self.noise_floor = noise_floor
         self._sum2 = 0.0
         self._n = 0
@@ -45,8 +56,8 @@ class Innovation:
     def observe(self, measured: VehicleState) -> VehicleState:
         """Take this step's measurement; return the state to plan from: ``measured`` itself
         while the innovation stays below the noise floor, else the blend of the prediction
-        from the last estimate and ``measured`` (pose and speed; acceleration and steering
-        as measured)."""
+        from the last estimate and ``measured`` (pose with ``gain``, speed with ``speed_gain``;
+        acceleration and steering as measured)."""
         z = measured.as_array()
         pred = None
         if self._last is not None and self._command is not None:
@@ -58,7 +69,8 @@ class Innovation:
             self._last = z
             return measured
         est = z.copy()
-        est[:4] = pred[:4] + self.gain * (z[:4] - pred[:4])
+        est[:3] = pred[:3] + self.gain * (z[:3] - pred[:3])
+        est[3] = pred[3] + self.speed_gain * (z[3] - pred[3])
         self._last = est
         return VehicleState(*(float(q) for q in est))
 
