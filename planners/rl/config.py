@@ -27,7 +27,22 @@ class HerConfig(StrictModel):
 class CurriculumConfig(StrictModel):
     enabled: bool = True
     start_fraction: float = Field(0.2, gt=0, le=1)
+    # schedule: the open fraction grows linearly to 1 at ``full_at`` x total_steps; success:
+    # it grows by ``step`` each time ``window`` episodes at the current level parked at least
+    # ``threshold`` of the time (``curriculum.SuccessLadder``)
+    mode: Literal["schedule", "success"] = "schedule"
     full_at: float = Field(0.6, gt=0, le=1)
+    step: float = Field(0.1, gt=0, le=1)
+    threshold: float = Field(0.6, gt=0, le=1)
+    window: int = Field(50, ge=1, le=100_000)
+
+
+class ShapingConfig(StrictModel):
+    """Potential-based shaping with the scene's cost to go (``shaping.CostToGoShaping``)."""
+
+    enabled: bool = False
+    scale: float = Field(10.0, gt=0, le=1000)  # [m] of cost to go per unit of reward
+    cap: float = Field(60.0, gt=0, le=10_000)  # [m] the cost to go read where it is larger or unknown
 
 
 class EvalConfig(StrictModel):
@@ -117,6 +132,7 @@ class RLConfig(StrictModel):
     lidar: LidarConfig = LidarConfig()
     her: HerConfig = HerConfig()
     curriculum: CurriculumConfig = CurriculumConfig()
+    shaping: ShapingConfig = ShapingConfig()
     eval: EvalConfig = EvalConfig()
     bc: BCConfig = BCConfig()
     dagger: DaggerConfig = DaggerConfig()

@@ -60,6 +60,28 @@ class CurriculumScenarios(gym.Wrapper):
         return self.env.reset(options={"scenario": self.grid.scenario(int(self._by_difficulty[i]))})
 
 
+class SuccessLadder:
+    """The curriculum level, driven by the learner's success: it opens ``step`` more of the
+    cases once ``window`` episodes at the current level have parked at least ``threshold``
+    of the time, and stays where it is until they do."""
+
+    def __init__(self, start: float, step: float, threshold: float, window: int) -> None:
+        if not 0 < start <= 1 or not 0 < step <= 1 or not 0 < threshold <= 1 or window < 1:
+            got = (start, step, threshold, window)
+            raise ValueError(f"SuccessLadder: start, step and threshold in (0, 1], window >= 1; got {got}")
+        self.level, self.step, self.threshold, self.window = start, step, threshold, window
+        self._recent: list[bool] = []
+
+    def record(self, success: bool) -> float:
+        """Take one finished episode's outcome; the level now."""
+        self._recent.append(bool(success))
+        if len(self._recent) >= self.window and self.level < 1:
+            if sum(self._recent[-self.window :]) >= self.threshold * self.window:
+                self.level = min(1.0, self.level + self.step)
+                self._recent.clear()
+        return self.level
+
+
 class FixedScenarios(gym.Wrapper):
     """Resets into the given scenarios in turn (evaluation on a fixed sample)."""
 

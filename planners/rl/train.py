@@ -20,7 +20,8 @@ import mirrorpark_env  # noqa: F401  (registers MirrorPark-v0)
 from mirrorpark_env.grid import Grid
 
 from .config import RLConfig, algo_class, env_config
-from .curriculum import CurriculumScenarios, FixedScenarios, LeanInfo
+from .curriculum import CurriculumScenarios, FixedScenarios, LeanInfo, SuccessLadder
+from .shaping import CostToGoShaping
 
 
 def make_train_env(cfg: RLConfig, grid: Grid) -> gym.Env:
@@ -28,7 +29,10 @@ def make_train_env(cfg: RLConfig, grid: Grid) -> gym.Env:
 
     env = gym.make("MirrorPark-v0", max_episode_steps=cfg.max_episode_steps, config=env_config(cfg))
     start = cfg.curriculum.start_fraction if cfg.curriculum.enabled else 1.0
-    return Monitor(LeanInfo(CurriculumScenarios(env, cfg.parking_types, level=start, grid=grid)))
+    env = CurriculumScenarios(env, cfg.parking_types, level=start, grid=grid)
+    if cfg.shaping.enabled:
+        env = CostToGoShaping(env, cfg.gamma, cfg.shaping.scale, cfg.shaping.cap)
+    return Monitor(LeanInfo(env))
 
 
 def make_eval_env(cfg: RLConfig, grid: Grid) -> gym.Env:
@@ -104,7 +108,7 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True, resume: bool = 
     ``resume``: continue from the latest checkpoint in ``out`` (its weights, replay buffer
     and step count) up to ``cfg.total_steps``, not from zero."""
     import torch
-    from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
+    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
     from stable_baselines3.common.logger import Logger, make_output_format
 
     out = Path(out)
@@ -129,18 +133,9 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True, resume: bool = 
         formats.append(make_output_format("tensorboard", str(out / "tb")))
     model.set_logger(Logger(str(out), formats))
 
-    class Curriculum(BaseCallback):
-        def _on_step(self) -> bool:
-            if cfg.curriculum.enabled:
-                frac = min(1.0, self.num_timesteps / (cfg.curriculum.full_at * cfg.total_steps))
-                level = cfg.curriculum.start_fraction + (1 - cfg.curriculum.start_fraction) * frac
-                self.training_env.env_method("set_level", level)
-                self.logger.record("train/curriculum_level", level)
-            return True
-
     callbacks = CallbackList(
         [
-            Curriculum(),
+            curriculum_callback(cfg),
             progress_callback(cfg.total_steps, f"train-rl {cfg.algo}", progress),
             CheckpointCallback(
                 cfg.checkpoint_every_steps, str(out / "checkpoints"), name_prefix=cfg.algo, save_replay_buffer=True
@@ -170,6 +165,36 @@ def train(cfg: RLConfig, out: str | Path, progress: bool = True, resume: bool = 
     if curve:
         plot_learning_curve(curve, out / "learning_curve.png")
     return summary
+
+
+def curriculum_callback(cfg: RLConfig):
+    """Sets the training cases' curriculum level each step: on ``cfg.curriculum.mode``'s
+    schedule, or from the episodes' success (``SuccessLadder``); logged as
+    ``train/curriculum_level``."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    cc = cfg.curriculum
+
+    class Curriculum(BaseCallback):
+        def _on_training_start(self) -> None:
+            self.ladder = SuccessLadder(cc.start_fraction, cc.step, cc.threshold, cc.window)
+
+        def _on_step(self) -> bool:
+            if not cc.enabled:
+                return True
+            if cc.mode == "success":
+                for done, info in zip(self.locals["dones"], self.locals["infos"]):
+                    if done:
+                        self.ladder.record(bool(info.get("is_success", False)))
+                level = self.ladder.level
+            else:
+                frac = min(1.0, self.num_timesteps / (cc.full_at * cfg.total_steps))
+                level = cc.start_fraction + (1 - cc.start_fraction) * frac
+            self.training_env.env_method("set_level", level)
+            self.logger.record("train/curriculum_level", level)
+            return True
+
+    return Curriculum()
 
 
 def progress_callback(total: int, desc: str, enabled: bool):
