@@ -103,7 +103,8 @@ def test_the_curriculum_only_opens_cases_of_the_grid():
 
 @pytest.mark.slow
 def test_a_tiny_run_with_shaping_and_the_success_curriculum_trains_end_to_end(tmp_path, require_module):
-    """Both helps switched on: the run ends with a model and logs its curriculum level."""
+    """Both helps switched on, HER off (its relabelling would drop the shaping): the run ends
+    with a model and logs its curriculum level."""
     require_module("stable_baselines3")
     require_module("torch")
     import pandas as pd
@@ -121,6 +122,7 @@ def test_a_tiny_run_with_shaping_and_the_success_curriculum_trains_end_to_end(tm
             checkpoint_every_steps=300,
             eval={"every_steps": 300, "episodes": 1},
             shaping={"enabled": True},
+            her={"enabled": False},
             curriculum={"mode": "success", "window": 1, "threshold": 0.5},
         )
     )

@@ -20,6 +20,7 @@ from mirrorpark_env.config import (
 
 
 class HerConfig(StrictModel):
+    enabled: bool = True  # off: a plain replay buffer (runs with ``shaping``, which HER's relabelling would drop)
     n_sampled_goal: int = Field(4, ge=1, le=32)
     goal_selection_strategy: Literal["future", "final", "episode"] = "future"
 

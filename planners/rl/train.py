@@ -47,15 +47,18 @@ def make_model(cfg: RLConfig, env: gym.Env):
     """The SAC or TQC model with HER that ``cfg`` describes, on ``env``."""
     from stable_baselines3 import HerReplayBuffer
 
-    return algo_class(cfg.algo)(
-        "MultiInputPolicy",
-        env,
+    her = dict(
         replay_buffer_class=HerReplayBuffer,
         replay_buffer_kwargs=dict(
             n_sampled_goal=cfg.her.n_sampled_goal,
             goal_selection_strategy=cfg.her.goal_selection_strategy,
             copy_info_dict=True,  # relabelled rewards keep the collision penalty
         ),
+    )
+    return algo_class(cfg.algo)(
+        "MultiInputPolicy",
+        env,
+        **(her if cfg.her.enabled else {}),
         learning_starts=cfg.learning_starts,
         buffer_size=min(cfg.buffer_size, max(cfg.total_steps, 1000)),
         batch_size=cfg.batch_size,
