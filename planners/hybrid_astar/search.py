@@ -5,8 +5,10 @@ arcs of fixed length at a few steering angles in both directions; costs for leng
 reversing, direction switches and steering; the heuristic is the larger of the Reeds-Shepp
 length and an obstacle-aware grid distance, and where the forward search stalls, the cost to
 go over (x, y, heading) that knows the car (``heuristic.CostToGoHeuristic``); each expanded
-node tries a collision-free Reeds-Shepp connection to the target. A node also ends the search when its pose lies in
-the ISO goal set (inside the slot with margins and heading to spare).
+node tries a collision-free Reeds-Shepp connection to the target. A node also ends the
+search when its pose lies in the ISO goal set (inside the slot with margins and heading to
+spare). This module sets a search up and reads its result; the expansion loop itself is
+compiled (``kernel.py``).
 
 Collision checks are exact for the swept footprint: poses are sampled ``sample_step``
 apart along every arc, and each sampled pose must clear every obstacle polygon by
