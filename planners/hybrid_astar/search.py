@@ -36,10 +36,9 @@ from ..common.reeds_shepp import ReedsShepp
 from . import kernel
 from .config import HybridAStarConfig
 from .heuristic import CostToGoHeuristic, GridDistance
+from .one_search import OneSearch
 
 __all__ = ["HybridAStar", "HybridAStarConfig"]
-
-_SLICE = 500  # expansions between looks at the wall-clock safety net
 
 
 @dataclass
@@ -225,76 +224,46 @@ class HybridAStar:
         if not self.goal_exists:
             return done(None, "no_goal")
         deadline = t0 + cfg.wall_clock_limit_s
-        share = max(1, int(cfg.backward_share * cfg.max_expansions))
-        if cfg.first == "backward":
-            order, limits = (True, False), (share, cfg.max_expansions)
-        else:
-            order, limits = (False, True), (cfg.max_expansions - share, cfg.max_expansions)
-        for backward, limit in zip(order, limits):
-            origin, goal = (self.goal, start) if backward else (start, self.goal)
-            poses, status, cost = self._search(origin, goal, backward, limit, deadline, counts)
-            if poses is not None:
-                path = Path.from_poses(poses[::-1] if backward else poses)
-                return done(path, "ok", cost, "backward" if backward else "forward")
-            if status == "wall_clock":
+        total = cfg.max_expansions
+        share = max(1, int(cfg.backward_share * total))
+        back_first = cfg.first == "backward"
+        first_cap = share if back_first else total - share
+        made: list[OneSearch] = []  # the searches in their order, each built when it first runs
+
+        def search(k: int) -> OneSearch:
+            if len(made) <= k:
+                backward = back_first == (k == 0)
+                origin, goal = (self.goal, start) if backward else (start, self.goal)
+                made.append(OneSearch(self, origin, goal, backward, first_cap if k == 0 else total))
+            return made[k]
+
+        def expansions(k: int) -> int:
+            return made[k].expansions if len(made) > k else 0
+
+        step = cfg.interleave or total  # 0: the first search to its end, then the second
+        last = None  # the search that ended last
+        while last is None or last.status not in ("ok", "wall_clock"):
+            live = [k for k in (0, 1) if len(made) <= k or made[k].status is None]
+            if not live:
                 break
-        return done(None, status)
-
-    def _search(self, origin, goal, backward: bool, limit: int, deadline: float, counts: dict[str, int]):
-        """One A* search from ``origin`` (``kernel.run``), until the call's expansions reach
-        ``limit``; (poses or None, status, cost).
-
-        Forward, a node in the ISO goal set also ends it; backward, the gear costs are
-        swapped, since the path will be driven the other way. Forward, after
-        ``plain_expansions`` the cost to go takes over (built then, if not yet).
-        """
-        cfg = self.cfg
-        sharpen_at = counts["expansions"] + cfg.plain_expansions
-        if backward or cfg.heuristic != "cost_to_go":
-            sharpen_at = -1
-        forward_cost, reverse_cost = (cfg.reverse_cost, 1.0) if backward else (1.0, cfg.reverse_cost)
-        offsets, gears, steers = self._primitives
-        cap = 1 + (limit - counts["expansions"]) * len(gears)  # each expansion adds one node a primitive at most
-        fl, it = np.empty((cap, 5)), np.empty((cap, 5), np.int64)
-        hf, ht, hn = np.empty(cap), np.empty(cap, np.int64), np.empty(cap, np.int64)
-        ctr = np.array([1, 0, counts["expansions"], 0], np.int64)
-        best_g, closed = kernel.new_maps()
-        gap = float(self._gaps(np.array([origin]))[0])
-        key = kernel.cell_key(*origin, gap, self._keyp)
-        fl[0], it[0] = (*origin, 0.0, 0.0), (-1, 0, -1, 0, key)
-        best_g[key] = 0.0
-        heur = self._heur_args(goal, None)
-        kernel.push(hf, ht, hn, ctr, kernel.estimate(*origin, 0, *heur), 0, 0)
-        costs = np.array([forward_cost, reverse_cost, cfg.steer_cost, cfg.steer_change_cost, cfg.switch_cost])
-        costs = np.append(costs, [self.sample_spacing, self.min_samples])
-        goals, shotp, gapargs, req, window = self._shot_args()
-        if backward:  # shots to the start alone
-            goals = np.array([goal[:3]], float)
-        goalp, body, edges, spec = self._goal_args()
-        status = "no_path"
-        while True:
-            stops = np.array([limit, ctr[kernel.N_EXP] + _SLICE, sharpen_at, cfg.analytic_every], np.int64)
-            code, i, tail = kernel.run(
-                fl, it, hf, ht, hn, ctr, best_g, closed, stops, backward, self._primitives, costs, self._keyp,
-                gapargs, req, window, *heur, goalp, body, edges, spec, goals, shotp,
-            )  # fmt: skip
-            counts["expansions"] = int(ctr[kernel.N_EXP])
-            if code == kernel.SLICE and time.perf_counter() <= deadline:
-                continue
-            if code == kernel.SHARPEN:
-                self.car_heuristic = CostToGoHeuristic(self.geometry, self.lattice, origin, cfg.lattice_stop)
-                heur = self._heur_args(goal, self.car_heuristic)
-                kernel.rerank(hf, ht, hn, ctr, fl, it, *heur)
-                sharpen_at = -1
-                continue
-            break
-        n = int(ctr[kernel.N_NODES])
-        counts["nodes"] += n
-        self._keep_tree(backward, fl[:n], it[:n])
-        if code in (kernel.FOUND, kernel.SHOT):
-            return self._trace(fl, it, i, tail if code == kernel.SHOT else None), "ok", float(fl[i, kernel.G])
-        status = {kernel.BUDGET: "budget", kernel.NO_PATH: "no_path", kernel.SLICE: "wall_clock"}[code]
-        return None, status, math.nan
+            for k in live:
+                s = search(k)
+                cap = min(first_cap, total - expansions(1)) if k == 0 else total - expansions(0)
+                target = min(cap, s.expansions + step)
+                s.advance(target, deadline, final=target >= cap)
+                counts["expansions"] = expansions(0) + expansions(1)
+                if s.status is not None:
+                    last = s
+                    if s.status in ("ok", "wall_clock"):
+                        break
+        for s in made:
+            counts["nodes"] += s.nodes
+            if self.keep_trees:
+                self.last_trees.append((s.backward, self._tree(s)))
+        if last.status == "ok":
+            path = Path.from_poses(last.poses[::-1] if last.backward else last.poses)
+            return done(path, "ok", last.cost, "backward" if last.backward else "forward")
+        return done(None, last.status)
 
     def _heur_args(self, goal, car: CostToGoHeuristic | None) -> tuple:
         """``kernel.estimate``'s (heur, grid, table, carp): the weight x the larger of the
@@ -319,32 +288,17 @@ class HybridAStar:
         spec = np.array([(-1 if c is None else c, e) for c, e in cr._spec], np.int64)
         return goalp, np.array(cr._body, float), np.array(cr._edges, float), spec
 
-    def _keep_tree(self, backward: bool, fl: np.ndarray, it: np.ndarray) -> None:
-        """With ``keep_trees``, the search's nodes as ``_Node``s, for figures."""
-        if not self.keep_trees:
-            return
+    @staticmethod
+    def _tree(search: OneSearch) -> list[_Node]:
+        """A search's nodes as ``_Node``s, for figures (``keep_trees``)."""
+        fl, it = search.fl, search.it
         nodes = [_Node(tuple(fl[0, :3]), 0.0, -1, 0, 0.0, None, ())]
         nodes += [
             _Node(tuple(fl[i, :3]), float(fl[i, kernel.G]), int(it[i, kernel.PARENT]), int(it[i, kernel.GEAR]),
-                  float(fl[i, kernel.STEER]), self._samples(fl, it, i), (int(it[i, kernel.KEY]),))
-            for i in range(1, len(fl))
+                  float(fl[i, kernel.STEER]), search.samples(i), (int(it[i, kernel.KEY]),))
+            for i in range(1, search.nodes)
         ]  # fmt: skip
-        self.last_trees.append((backward, nodes))
-
-    def _samples(self, fl: np.ndarray, it: np.ndarray, i: int) -> np.ndarray:
-        """Node ``i``'s poses from its parent (excluded) to it (included), as the kernel made them."""
-        x, y, th = fl[it[i, kernel.PARENT], :3]
-        c, s = math.cos(th), math.sin(th)
-        o = self._primitives[0][it[i, kernel.PRIM], : it[i, kernel.KEPT]]
-        return np.stack((x + c * o[:, 0] - s * o[:, 1], y + s * o[:, 0] + c * o[:, 1], th + o[:, 2]), axis=-1)
-
-    def _trace(self, fl: np.ndarray, it: np.ndarray, i: int, tail: np.ndarray | None) -> np.ndarray:
-        parts = [] if tail is None else [tail[1:]]
-        while i > 0:
-            parts.append(self._samples(fl, it, i))
-            i = int(it[i, kernel.PARENT])
-        parts.append(fl[:1, :3])
-        return np.concatenate(parts[::-1])
+        return nodes
 
 
 def _gap_args(checker) -> tuple:
