@@ -218,7 +218,7 @@ def test_reeds_shepp_path_placed_twice_equals_sampling_twice():
 def test_the_stopping_check_brakes_before_tracking_error_meets_an_obstacle(case_id):
     # The search as it was when these cases touched (the tuned one plans them other ways).
     first = HybridAStarConfig(
-        fine_gap=0.0, heuristic_weight=1.5, start_relief=1.0, start_gap_share=1.0, max_expansions=10_000
+        fine_gap=0.0, heuristic_weight=1.5, start_relief=1.0, start_gap_share=1.0, max_expansions=10_000, interleave=0
     )
     env = gym.make("MirrorPark-v0").unwrapped
     unchecked = HybridAStarPolicy(first, stopping_check=False)

@@ -52,8 +52,9 @@ class HybridAStarConfig(StrictModel):
     analytic_every: int = Field(2, ge=1)  # try a Reeds-Shepp connection every k-th expansion
     backward_share: float = Field(0.5, ge=0, le=1)  # of the budget, for the search out of the slot
     # The two searches take turns of this many expansions (0: the first runs to its end, then
-    # the second): a call costs about twice the quicker search's work, not the first's whole share
-    interleave: int = Field(0, ge=0)
+    # the second): a call costs about twice the quicker search's work, not the first's whole
+    # share. 1,000: lots' p95 work 0.57x, standard's 0.76x, switches +3 % and +0.4 % (docs)
+    interleave: int = Field(1_000, ge=0)
     grid_resolution: float = Field(0.25, gt=0, le=5)
     goal_margin: float = Field(0.05, ge=0, le=1)  # ISO margins plus this, for the goal set
     goal_heading_deg: float = Field(2.0, ge=0, le=45)

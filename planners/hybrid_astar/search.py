@@ -242,7 +242,7 @@ class HybridAStar:
 
         step = cfg.interleave or total  # 0: the first search to its end, then the second
         last = None  # the search that ended last
-        while last is None or last.status not in ("ok", "wall_clock"):
+        while last is None or not _ends_call(last):
             live = [k for k in (0, 1) if len(made) <= k or made[k].status is None]
             if not live:
                 break
@@ -254,7 +254,7 @@ class HybridAStar:
                 counts["expansions"] = expansions(0) + expansions(1)
                 if s.status is not None:
                     last = s
-                    if s.status in ("ok", "wall_clock"):
+                    if _ends_call(s):
                         break
         for s in made:
             counts["nodes"] += s.nodes
@@ -299,6 +299,12 @@ class HybridAStar:
             for i in range(1, search.nodes)
         ]  # fmt: skip
         return nodes
+
+
+def _ends_call(search: OneSearch) -> bool:
+    """Whether a search's end ends the call: a path, the safety net, or a forward search out
+    of states (the start is boxed in: the other search cannot get there either)."""
+    return search.status in ("ok", "wall_clock") or (search.status == "no_path" and not search.backward)
 
 
 def _gap_args(checker) -> tuple:
