@@ -10,6 +10,7 @@ the grid (4.5 m), where the road's far side is least in the way. It says why no
 planner here parks the shortest slots that admit an ISO pose.
 
     python scripts/experiments/in_slot_escape.py [--max-length 4.62] [--arcs 100]
+    python scripts/experiments/in_slot_escape.py --layout configs/layouts/tpcap/par07.csv --arcs 200
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import numpy as np
 
 from evaluation.cases import from_sample
 from mirrorpark_env.criteria import iso_pose_exists
+from mirrorpark_env.layout_io import load_layout
 from planners.common.clearance import gaps
 from planners.common.turns import turn_chains
 from planners.mirror.config import AimedConfig
@@ -53,6 +55,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--max-length", type=float, default=4.62, help="longest slot to look at [m]")
     ap.add_argument("--arcs", type=int, default=100, help="most arcs per turn")
+    ap.add_argument("--layout", default=None, help="a layout file's target instead of the grid's slots")
     a = ap.parse_args()
     v = AimedConfig().lattice
     settings = [  # (label, steer fraction, sample step [m], clearance [m])
@@ -61,6 +64,12 @@ def main() -> None:
         ("2 cm, full lock, 5 mm steps", 1.0, 0.005, 0.02),
         ("5 mm, full lock, 5 mm steps", 1.0, 0.005, 0.005),
     ]
+    if a.layout:
+        g = load_layout(a.layout).build()
+        for label, frac, step, clearance in settings:
+            r = escape(g, g.vehicle.r_min / frac, step, clearance, a.arcs)
+            print(f"{a.layout}: {label}: " + (f"{r[0]} ({r[1]})" if r else "none"))
+        return
     slots = {}
     for sc in from_sample("full"):
         if sc.parking_type.value == "parallel" and sc.slot_length <= a.max_length + 1e-9:
