@@ -7,6 +7,7 @@ import json
 import gymnasium as gym
 import numpy as np
 import pytest
+from tiny_rl import tiny_config
 
 import mirrorpark_env  # noqa: F401
 from mirrorpark_env.grid import Grid
@@ -87,17 +88,12 @@ def test_a_short_training_run_saves_a_model_that_acts_as_a_policy(tmp_path, requ
     from evaluation.registry import make_policy
     from planners.rl.train import train
 
-    cfg = load_rl_config(
-        overrides=dict(
-            algo=algo,
-            total_steps=300,
-            learning_starts=100,
-            batch_size=32,
-            net_arch=[32, 32],
-            max_episode_steps=100,
-            checkpoint_every_steps=150,
-            eval={"every_steps": 300, "episodes": 1},
-        )
+    cfg = tiny_config(
+        algo=algo,
+        total_steps=300,
+        max_episode_steps=100,
+        checkpoint_every_steps=150,
+        eval={"every_steps": 300, "episodes": 1},
     )
     summary = train(cfg, tmp_path, progress=False)
     for name in ("model.zip", "train.json", "progress.csv", "evaluations.npz", "learning_curve.png"):
@@ -122,16 +118,8 @@ def test_resume_continues_from_the_checkpoints_step_count(tmp_path, require_modu
     from evaluation.cli import main as cli
     from planners.rl.train import latest_checkpoint, train
 
-    cfg = load_rl_config(
-        overrides=dict(
-            total_steps=200,
-            learning_starts=100,
-            batch_size=32,
-            net_arch=[32, 32],
-            max_episode_steps=40,
-            checkpoint_every_steps=100,
-            eval={"every_steps": 1000, "episodes": 1},
-        )
+    cfg = tiny_config(
+        total_steps=200, max_episode_steps=40, checkpoint_every_steps=100, eval={"every_steps": 1000, "episodes": 1}
     )
     train(cfg, tmp_path, progress=False)  # as if interrupted right after its last checkpoint
     ckpt, steps = latest_checkpoint(tmp_path, "sac")

@@ -9,6 +9,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from tiny_rl import tiny_config
 
 import mirrorpark_env  # noqa: F401  (registers MirrorPark-v0)
 from mirrorpark_env.grid import Grid
@@ -109,22 +110,16 @@ def test_a_tiny_run_with_shaping_and_the_success_curriculum_trains_end_to_end(tm
     require_module("torch")
     import pandas as pd
 
-    from planners.rl.config import load_rl_config
     from planners.rl.train import train
 
-    cfg = load_rl_config(
-        overrides=dict(
-            total_steps=300,
-            learning_starts=100,
-            batch_size=32,
-            net_arch=[32, 32],
-            max_episode_steps=50,
-            checkpoint_every_steps=300,
-            eval={"every_steps": 300, "episodes": 1},
-            shaping={"enabled": True},
-            her={"enabled": False},
-            curriculum={"mode": "success", "window": 1, "threshold": 0.5},
-        )
+    cfg = tiny_config(
+        total_steps=300,
+        max_episode_steps=50,
+        checkpoint_every_steps=300,
+        eval={"every_steps": 300, "episodes": 1},
+        shaping={"enabled": True},
+        her={"enabled": False},
+        curriculum={"mode": "success", "window": 1, "threshold": 0.5},
     )
     train(cfg, tmp_path, progress=False)
     assert (tmp_path / "model.zip").is_file()
