@@ -183,11 +183,11 @@ class HybridAStar:
     def plan(self, start) -> tuple[Path | None, PlanStats]:
         """Search from ``start`` (x, y, theta); the path (None on failure) and the call's stats.
 
-        Two searches share the budget: first backward, out of the slot from the target
-        until a Reeds-Shepp curve meets the start (in a tight slot the few ways out are
-        found at once, where a forward search floods the road); then, if that fails,
-        forward from the start into the ISO goal set, on the grid distance for
-        ``plain_expansions`` and then on the cost to go. Paths are reversible, so the
+        Two searches share the budget, taking turns of ``interleave`` expansions (``_turns``):
+        backward, out of the slot from the target until a Reeds-Shepp curve meets the start
+        (in a tight slot the few ways out are found at once, where a forward search floods
+        the road), and forward from the start into the ISO goal set, on the grid distance
+        for ``plain_expansions`` and then on the cost to go. Paths are reversible, so the
         backward one is driven in reverse order with the gear costs swapped.
         Status: "ok", "start_in_collision", "no_goal" (no pose in the slot passes the ISO
         check), "no_path" (the reachable space is exhausted), "budget" (``max_expansions``
@@ -223,12 +223,27 @@ class HybridAStar:
             return done(None, "start_in_collision")
         if not self.goal_exists:
             return done(None, "no_goal")
-        deadline = t0 + cfg.wall_clock_limit_s
+        made, last = self._turns(start, t0 + cfg.wall_clock_limit_s, counts)
+        for s in made:
+            counts["nodes"] += s.nodes
+            if self.keep_trees:
+                self.last_trees.append((s.backward, self._tree(s)))
+        if last.status == "ok":
+            path = Path.from_poses(last.poses[::-1] if last.backward else last.poses)
+            return done(path, "ok", last.cost, "backward" if last.backward else "forward")
+        return done(None, last.status)
+
+    def _turns(self, start, deadline: float, counts: dict[str, int]) -> tuple[list[OneSearch], OneSearch]:
+        """Run the two searches in turns of ``interleave`` expansions (0: the first to its end,
+        then the second), the first at most its share of the budget, until one ends the call
+        (``_ends_call``) or both have ended; (the searches built, in their order; the one that
+        ended last)."""
+        cfg = self.cfg
         total = cfg.max_expansions
         share = max(1, int(cfg.backward_share * total))
         back_first = cfg.first == "backward"
         first_cap = share if back_first else total - share
-        made: list[OneSearch] = []  # the searches in their order, each built when it first runs
+        made: list[OneSearch] = []  # each built when it first runs
 
         def search(k: int) -> OneSearch:
             if len(made) <= k:
@@ -240,8 +255,8 @@ class HybridAStar:
         def expansions(k: int) -> int:
             return made[k].expansions if len(made) > k else 0
 
-        step = cfg.interleave or total  # 0: the first search to its end, then the second
-        last = None  # the search that ended last
+        step = cfg.interleave or total
+        last = None
         while last is None or not _ends_call(last):
             live = [k for k in (0, 1) if len(made) <= k or made[k].status is None]
             if not live:
@@ -256,14 +271,7 @@ class HybridAStar:
                     last = s
                     if _ends_call(s):
                         break
-        for s in made:
-            counts["nodes"] += s.nodes
-            if self.keep_trees:
-                self.last_trees.append((s.backward, self._tree(s)))
-        if last.status == "ok":
-            path = Path.from_poses(last.poses[::-1] if last.backward else last.poses)
-            return done(path, "ok", last.cost, "backward" if last.backward else "forward")
-        return done(None, last.status)
+        return made, last
 
     def _heur_args(self, goal, car: CostToGoHeuristic | None) -> tuple:
         """``kernel.estimate``'s (heur, grid, table, carp): the weight x the larger of the
