@@ -90,6 +90,16 @@ class SuccessCriteria:
         self._body = [tuple(b) for b in self.vehicle.body_corners().tolist()]
         self._edges = [(hp.normal[0], hp.normal[1], hp.offset) for _, hp in geometry.slot_edges]
 
+    def as_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """What ``verdict``'s margins are computed from, for compiled checks: the body corners
+        (4, 2), the slot's edges as (normal x, normal y, offset) rows, the margins as (corner
+        or -1 for the lowest over the corners, edge) rows, and the position tolerance of a
+        scene without a slot (its only margin; the arrays are then empty)."""
+        if self.no_slot:
+            return np.zeros((4, 2)), np.zeros((1, 3)), np.zeros((1, 2), np.int64), self._pos_tol
+        spec = np.array([(-1 if c is None else c, e) for c, e in self._spec], np.int64)
+        return np.array(self._body, float), np.array(self._edges, float), spec, 0.0
+
     @property
     def min_margin(self) -> float:
         """The smallest margin success allows (parallel: strictly more than this)."""

@@ -288,13 +288,11 @@ class HybridAStar:
     def _goal_args(self) -> tuple:
         """``kernel.in_goal_set``'s (goalp, body, edges, spec), from the success criteria."""
         cr = self.criteria
+        body, edges, spec, pos_tol = cr.as_arrays()
         need = cr.min_margin + self.cfg.goal_margin
         tx, ty = self.goal[:2]
-        goalp = np.array([cr.target_heading, self.goal_heading, cr.no_slot, need, getattr(cr, "_pos_tol", 0.0), tx, ty])
-        if cr.no_slot:
-            return goalp, np.zeros((4, 2)), np.zeros((1, 3)), np.zeros((1, 2), np.int64)
-        spec = np.array([(-1 if c is None else c, e) for c, e in cr._spec], np.int64)
-        return goalp, np.array(cr._body, float), np.array(cr._edges, float), spec
+        goalp = np.array([cr.target_heading, self.goal_heading, cr.no_slot, need, pos_tol, tx, ty])
+        return goalp, body, edges, spec
 
     @staticmethod
     def _tree(search: OneSearch) -> list[_Node]:
